@@ -1,0 +1,104 @@
+#include <vkjr2/kernels/basic.hpp>
+
+#include <string>
+
+namespace vkjr2::kernels {
+namespace {
+
+constexpr std::uint32_t kPerGroup = 1024;       // fill/copy/axpy: 256 invocations × 4
+constexpr std::uint32_t kSumPerGroup = 2048;    // reduce_sum: 256 invocations × 8
+
+struct FillPush {
+  std::uint32_t n;
+  float value;
+};
+struct CopyPush {
+  std::uint32_t n;
+};
+struct AxpyPush {
+  std::uint32_t n;
+  float alpha;
+};
+struct SumPush {
+  std::uint32_t n;
+};
+static_assert(sizeof(FillPush) <= 128 && sizeof(AxpyPush) <= 128);
+
+std::uint32_t checked_count(const Tensor& t, const char* op, const char* name) {
+  if (!t.defined()) throw InvalidArgument(op, std::string(name) + " is undefined");
+  if (t.dtype() != DType::f32) {
+    throw InvalidArgument(op, std::string(name) + " is " + dtype_name(t.dtype()) + ", expected f32");
+  }
+  if (t.numel() == 0) {
+    throw InvalidArgument(op, std::string(name) + " " + t.shape().str() + " is empty",
+                          "skip the op for empty inputs");
+  }
+  if (t.numel() > std::int64_t(UINT32_MAX)) {
+    throw InvalidArgument(op, std::string(name) + " has more than 2^32 elements",
+                          "split it into chunks");
+  }
+  return static_cast<std::uint32_t>(t.numel());
+}
+
+void check_same_count(const Tensor& a, const Tensor& b, const char* op) {
+  if (a.numel() != b.numel()) {
+    throw InvalidArgument(op, "element counts differ: " + a.shape().str() + " vs " +
+                                  b.shape().str());
+  }
+}
+
+}  // namespace
+
+void fill(Stream& stream, const Tensor& dst, float value) {
+  static const KernelDef kFill{"fill", {BindingKind::storage}, sizeof(FillPush)};
+  const std::uint32_t n = checked_count(dst, "fill", "dst");
+  stream.dispatch(kFill, {out(dst)}, FillPush{n, value},
+                  groups_1d(div_up(n, kPerGroup), stream.device().info()));
+}
+
+void copy(Stream& stream, const Tensor& src, const Tensor& dst) {
+  static const KernelDef kCopy{"copy", {BindingKind::storage, BindingKind::storage},
+                               sizeof(CopyPush)};
+  const std::uint32_t n = checked_count(src, "copy", "src");
+  checked_count(dst, "copy", "dst");
+  check_same_count(src, dst, "copy");
+  stream.dispatch(kCopy, {in(src), out(dst)}, CopyPush{n},
+                  groups_1d(div_up(n, kPerGroup), stream.device().info()));
+}
+
+void axpy(Stream& stream, float alpha, const Tensor& x, const Tensor& y) {
+  static const KernelDef kAxpy{"axpy", {BindingKind::texel, BindingKind::storage},
+                               sizeof(AxpyPush)};
+  const std::uint32_t n = checked_count(x, "axpy", "x");
+  checked_count(y, "axpy", "y");
+  check_same_count(x, y, "axpy");
+  stream.dispatch(kAxpy, {texel(x), inout(y)}, AxpyPush{n, alpha},
+                  groups_1d(div_up(n, kPerGroup), stream.device().info()));
+}
+
+void sum(Stream& stream, const Tensor& x, const Tensor& out_sum) {
+  static const KernelDef kReduce{"reduce_sum", {BindingKind::texel, BindingKind::storage},
+                                 sizeof(SumPush)};
+  std::uint32_t n = checked_count(x, "sum", "x");
+  if (checked_count(out_sum, "sum", "out") != 1) {
+    throw InvalidArgument("sum", "out must have exactly one element, got " +
+                                     out_sum.shape().str());
+  }
+  const Device device = stream.device();
+  if (!device.info().subgroup_arithmetic) {
+    throw Error("sum", "device '" + device.info().name + "' lacks subgroup arithmetic",
+                "pick another device with VKJR2_DEVICE");
+  }
+  Tensor current = x;
+  for (;;) {
+    const std::uint32_t groups = div_up(n, kSumPerGroup);
+    Tensor partial = groups == 1 ? out_sum : Tensor::empty(device, Shape{groups});
+    stream.dispatch(kReduce, {texel(current), vkjr2::out(partial)}, SumPush{n},
+                    groups_1d(groups, device.info()));
+    if (groups == 1) return;
+    current = partial;
+    n = groups;
+  }
+}
+
+}  // namespace vkjr2::kernels
