@@ -1,4 +1,5 @@
 #include <vkjr2/kernels/basic.hpp>
+#include <vkjr2/kernels/check.hpp>
 
 #include <string>
 
@@ -24,34 +25,11 @@ struct SumPush {
 };
 static_assert(sizeof(FillPush) <= 128 && sizeof(AxpyPush) <= 128);
 
-std::uint32_t checked_count(const Tensor& t, const char* op, const char* name) {
-  if (!t.defined()) throw InvalidArgument(op, std::string(name) + " is undefined");
-  if (t.dtype() != DType::f32) {
-    throw InvalidArgument(op, std::string(name) + " is " + dtype_name(t.dtype()) + ", expected f32");
-  }
-  if (t.numel() == 0) {
-    throw InvalidArgument(op, std::string(name) + " " + t.shape().str() + " is empty",
-                          "skip the op for empty inputs");
-  }
-  if (t.numel() > std::int64_t(UINT32_MAX)) {
-    throw InvalidArgument(op, std::string(name) + " has more than 2^32 elements",
-                          "split it into chunks");
-  }
-  return static_cast<std::uint32_t>(t.numel());
-}
-
-void check_same_count(const Tensor& a, const Tensor& b, const char* op) {
-  if (a.numel() != b.numel()) {
-    throw InvalidArgument(op, "element counts differ: " + a.shape().str() + " vs " +
-                                  b.shape().str());
-  }
-}
-
 }  // namespace
 
 void fill(Stream& stream, const Tensor& dst, float value) {
   static const KernelDef kFill{"fill", {BindingKind::storage}, sizeof(FillPush)};
-  const std::uint32_t n = checked_count(dst, "fill", "dst");
+  const std::uint32_t n = require_f32(dst, "fill", "dst");
   stream.dispatch(kFill, {out(dst)}, FillPush{n, value},
                   groups_1d(div_up(n, kPerGroup), stream.device().info()));
 }
@@ -59,9 +37,9 @@ void fill(Stream& stream, const Tensor& dst, float value) {
 void copy(Stream& stream, const Tensor& src, const Tensor& dst) {
   static const KernelDef kCopy{"copy", {BindingKind::storage, BindingKind::storage},
                                sizeof(CopyPush)};
-  const std::uint32_t n = checked_count(src, "copy", "src");
-  checked_count(dst, "copy", "dst");
-  check_same_count(src, dst, "copy");
+  const std::uint32_t n = require_f32(src, "copy", "src");
+  require_f32(dst, "copy", "dst");
+  require_same_numel(src, dst, "copy", "src", "dst");
   stream.dispatch(kCopy, {in(src), out(dst)}, CopyPush{n},
                   groups_1d(div_up(n, kPerGroup), stream.device().info()));
 }
@@ -69,9 +47,9 @@ void copy(Stream& stream, const Tensor& src, const Tensor& dst) {
 void axpy(Stream& stream, float alpha, const Tensor& x, const Tensor& y) {
   static const KernelDef kAxpy{"axpy", {BindingKind::texel, BindingKind::storage},
                                sizeof(AxpyPush)};
-  const std::uint32_t n = checked_count(x, "axpy", "x");
-  checked_count(y, "axpy", "y");
-  check_same_count(x, y, "axpy");
+  const std::uint32_t n = require_f32(x, "axpy", "x");
+  require_f32(y, "axpy", "y");
+  require_same_numel(x, y, "axpy", "x", "y");
   stream.dispatch(kAxpy, {texel(x), inout(y)}, AxpyPush{n, alpha},
                   groups_1d(div_up(n, kPerGroup), stream.device().info()));
 }
@@ -79,8 +57,8 @@ void axpy(Stream& stream, float alpha, const Tensor& x, const Tensor& y) {
 void sum(Stream& stream, const Tensor& x, const Tensor& out_sum) {
   static const KernelDef kReduce{"reduce_sum", {BindingKind::texel, BindingKind::storage},
                                  sizeof(SumPush)};
-  std::uint32_t n = checked_count(x, "sum", "x");
-  if (checked_count(out_sum, "sum", "out") != 1) {
+  std::uint32_t n = require_f32(x, "sum", "x");
+  if (require_f32(out_sum, "sum", "out") != 1) {
     throw InvalidArgument("sum", "out must have exactly one element, got " +
                                      out_sum.shape().str());
   }
