@@ -6,7 +6,8 @@
 namespace vkjr2::kernels {
 namespace {
 
-constexpr std::uint32_t kPerGroup = 1024;       // fill/copy/axpy: 256 invocations × 4
+constexpr std::uint32_t kPerGroup = 1024;      // axpy: 256 invocations × 4 floats
+constexpr std::uint32_t kVec4PerGroup = 4096;  // fill/copy: 256 invocations × 4 vec4
 constexpr std::uint32_t kSumPerGroup = 2048;    // reduce_sum: 256 invocations × 8
 
 struct FillPush {
@@ -31,17 +32,22 @@ void fill(Stream& stream, const Tensor& dst, float value) {
   static const KernelDef kFill{"fill", {BindingKind::storage}, sizeof(FillPush)};
   const std::uint32_t n = require_f32(dst, "fill", "dst");
   stream.dispatch(kFill, {out(dst)}, FillPush{n, value},
-                  groups_1d(div_up(n, kPerGroup), stream.device().info()));
+                  groups_1d(div_up(n, kVec4PerGroup), stream.device().info()));
 }
 
 void copy(Stream& stream, const Tensor& src, const Tensor& dst) {
-  static const KernelDef kCopy{"copy", {BindingKind::storage, BindingKind::storage},
-                               sizeof(CopyPush)};
+  static const KernelDef kCopy{
+      "copy", {BindingKind::texel, BindingKind::texel, BindingKind::storage}, sizeof(CopyPush)};
   const std::uint32_t n = require_f32(src, "copy", "src");
   require_f32(dst, "copy", "dst");
   require_same_numel(src, dst, "copy", "src", "dst");
-  stream.dispatch(kCopy, {in(src), out(dst)}, CopyPush{n},
-                  groups_1d(div_up(n, kPerGroup), stream.device().info()));
+  // vec4 body through an RGBA32F view (its range must be a multiple of 16
+  // bytes); below 4 elements the body is empty and the R32F view serves.
+  const std::uint32_t body = n / 4 * 4;
+  const Arg src4 = body > 0 ? texel(src.view(Shape{body}), VK_FORMAT_R32G32B32A32_SFLOAT)
+                            : texel(src);
+  stream.dispatch(kCopy, {src4, texel(src), out(dst)}, CopyPush{n},
+                  groups_1d(div_up(n, kVec4PerGroup), stream.device().info()));
 }
 
 void axpy(Stream& stream, float alpha, const Tensor& x, const Tensor& y) {

@@ -1,0 +1,107 @@
+// Shared benchmark plumbing: timing, a printed table and JSON output. Every
+// figure is compared with a peer measured in the same run.
+#pragma once
+
+#include <vkjr2/runtime/device.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <fstream>
+#include <functional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace vkjr2::bench {
+
+struct Result {
+  std::string name;
+  double value = 0;
+  std::string unit;
+  std::string peer;
+  double peer_value = 0;
+  // Compute-bound kernels: value / measured device peak (negative: not applicable).
+  double fraction_of_device_peak = -1;
+  bool higher_is_better = true;
+
+  double ratio_vs_peer() const {
+    if (peer_value == 0 || value == 0) return 0;
+    return higher_is_better ? value / peer_value : peer_value / value;
+  }
+};
+
+// Median wall time of `fn` in seconds over `reps` runs after `warmup` runs.
+inline double median_seconds(const std::function<void()>& fn, int reps, int warmup = 1) {
+  for (int i = 0; i < warmup; ++i) fn();
+  std::vector<double> t;
+  for (int i = 0; i < reps; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    fn();
+    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  std::sort(t.begin(), t.end());
+  return t[t.size() / 2];
+}
+
+inline std::string machine_name() {
+  std::ifstream cpu("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(cpu, line)) {
+    if (line.rfind("model name", 0) == 0) {
+      return line.substr(line.find(':') + 2) + ", " +
+             std::to_string(std::thread::hardware_concurrency()) + " threads";
+    }
+  }
+  return "unknown CPU";
+}
+
+inline void print_table(const std::string& title, const Device& device,
+                        const std::vector<Result>& results) {
+  std::printf("%s\ndevice: %s (%s)\nmachine: %s\n\n", title.c_str(), device.info().name.c_str(),
+              device.info().driver_info.c_str(), machine_name().c_str());
+  std::printf("%-34s %12s %-9s %-30s %12s %8s %7s\n", "benchmark", "value", "unit", "peer",
+              "peer value", "ratio", "of peak");
+  for (const Result& r : results) {
+    char peak[16] = "";
+    if (r.fraction_of_device_peak >= 0) {
+      std::snprintf(peak, sizeof peak, "%5.1f%%", 100 * r.fraction_of_device_peak);
+    }
+    std::printf("%-34s %12.3f %-9s %-30s %12.3f %7.3fx %7s\n", r.name.c_str(), r.value,
+                r.unit.c_str(), r.peer.c_str(), r.peer_value, r.ratio_vs_peer(), peak);
+  }
+  std::printf("\nratio > 1: vkjr2 is better than the peer (throughput higher or time lower)\n");
+}
+
+inline nlohmann::json to_json(const Device& device, const std::vector<Result>& results) {
+  nlohmann::json out;
+  out["device"] = device.info().name;
+  out["driver"] = device.info().driver_info;
+  out["machine"] = machine_name();
+  out["results"] = nlohmann::json::array();
+  for (const Result& r : results) {
+    nlohmann::json j = {{"name", r.name},       {"value", r.value},
+                        {"unit", r.unit},       {"peer", r.peer},
+                        {"peer_value", r.peer_value}, {"ratio_vs_peer", r.ratio_vs_peer()}};
+    if (r.fraction_of_device_peak >= 0) j["fraction_of_device_peak"] = r.fraction_of_device_peak;
+    out["results"].push_back(j);
+  }
+  return out;
+}
+
+// Writes JSON atomically (temporary name, then rename).
+inline void write_json(const std::string& path, const nlohmann::json& j) {
+  const std::string tmp = path + ".tmp";
+  {
+    std::ofstream f(tmp);
+    f << j.dump(2) << "\n";
+    if (!f) throw std::runtime_error("cannot write " + tmp);
+  }
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    throw std::runtime_error("cannot rename " + tmp + " to " + path);
+  }
+}
+
+}  // namespace vkjr2::bench
