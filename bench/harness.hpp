@@ -82,9 +82,9 @@ inline nlohmann::json to_json(const Device& device, const std::vector<Result>& r
   out["machine"] = machine_name();
   out["results"] = nlohmann::json::array();
   for (const Result& r : results) {
-    nlohmann::json j = {{"name", r.name},       {"value", r.value},
-                        {"unit", r.unit},       {"peer", r.peer},
-                        {"peer_value", r.peer_value}, {"ratio_vs_peer", r.ratio_vs_peer()}};
+    nlohmann::json j = {
+        {"name", r.name}, {"value", r.value},           {"unit", r.unit},
+        {"peer", r.peer}, {"peer_value", r.peer_value}, {"ratio_vs_peer", r.ratio_vs_peer()}};
     if (r.fraction_of_device_peak >= 0) j["fraction_of_device_peak"] = r.fraction_of_device_peak;
     out["results"].push_back(j);
   }

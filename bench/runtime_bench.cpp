@@ -25,19 +25,22 @@ std::vector<bench::Result> dispatch_overhead(const Device& dev) {
   for (int i = 0; i < 100; ++i) tiny.push_back(Tensor::empty(dev, {1}));
   Stream s(dev);
   const double one = bench::median_seconds(
-      [&] {
-        for (int i = 0; i < 20; ++i) {
-          kernels::fill(s, tiny[0], 1.f);
-          s.run();
-        }
-      },
-      5) / 20;
+                         [&] {
+                           for (int i = 0; i < 20; ++i) {
+                             kernels::fill(s, tiny[0], 1.f);
+                             s.run();
+                           }
+                         },
+                         5) /
+                     20;
   const double batched = bench::median_seconds(
-      [&] {
-        for (const Tensor& t : tiny) kernels::fill(s, t, 1.f);  // independent: no barriers
-        s.run();
-      },
-      5) / 100;
+                             [&] {
+                               for (const Tensor& t : tiny)
+                                 kernels::fill(s, t, 1.f);  // independent: no barriers
+                               s.run();
+                             },
+                             5) /
+                         100;
   bench::Result r;
   r.name = "dispatch, 100 per command buffer";
   r.value = batched * 1e6;
@@ -69,7 +72,8 @@ std::vector<bench::Result> copy_bandwidth(const Device& dev) {
       7);
   std::vector<float> x(static_cast<std::size_t>(n), 1.f);
   std::vector<float> y(static_cast<std::size_t>(n));
-  const double memcpy_s = bench::median_seconds([&] { std::memcpy(y.data(), x.data(), x.size() * sizeof(float)); }, 7);
+  const double memcpy_s =
+      bench::median_seconds([&] { std::memcpy(y.data(), x.data(), x.size() * sizeof(float)); }, 7);
   const double peer = bytes / memcpy_s * 1e-9;
   bench::Result k{"copy kernel 64 MiB", bytes / kernel_s * 1e-9, "GB/s", "memcpy (1 thread)", peer};
   bench::Result t{"vkCmdCopyBuffer 64 MiB", bytes / transfer_s * 1e-9, "GB/s", "memcpy (1 thread)",

@@ -19,7 +19,8 @@ struct DevicesArgs {
 
 nlohmann::json to_json(const DeviceInfo& d, bool selected) {
   nlohmann::json heaps = nlohmann::json::array();
-  for (const auto& h : d.heaps) heaps.push_back({{"bytes", h.size_bytes}, {"device_local", h.device_local}});
+  for (const auto& h : d.heaps)
+    heaps.push_back({{"bytes", h.size_bytes}, {"device_local", h.device_local}});
   return {{"index", d.index},
           {"name", d.name},
           {"type", d.type_name()},

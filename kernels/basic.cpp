@@ -8,7 +8,7 @@ namespace {
 
 constexpr std::uint32_t kPerGroup = 1024;      // axpy: 256 invocations × 4 floats
 constexpr std::uint32_t kVec4PerGroup = 4096;  // fill/copy: 256 invocations × 4 vec4
-constexpr std::uint32_t kSumPerGroup = 2048;    // reduce_sum: 256 invocations × 8
+constexpr std::uint32_t kSumPerGroup = 2048;   // reduce_sum: 256 invocations × 8
 
 struct FillPush {
   std::uint32_t n;
@@ -44,15 +44,15 @@ void copy(Stream& stream, const Tensor& src, const Tensor& dst) {
   // vec4 body through an RGBA32F view (its range must be a multiple of 16
   // bytes); below 4 elements the body is empty and the R32F view serves.
   const std::uint32_t body = n / 4 * 4;
-  const Arg src4 = body > 0 ? texel(src.view(Shape{body}), VK_FORMAT_R32G32B32A32_SFLOAT)
-                            : texel(src);
+  const Arg src4 =
+      body > 0 ? texel(src.view(Shape{body}), VK_FORMAT_R32G32B32A32_SFLOAT) : texel(src);
   stream.dispatch(kCopy, {src4, texel(src), out(dst)}, CopyPush{n},
                   groups_1d(div_up(n, kVec4PerGroup), stream.device().info()));
 }
 
 void axpy(Stream& stream, float alpha, const Tensor& x, const Tensor& y) {
-  static const KernelDef kAxpy{"axpy", {BindingKind::texel, BindingKind::storage},
-                               sizeof(AxpyPush)};
+  static const KernelDef kAxpy{
+      "axpy", {BindingKind::texel, BindingKind::storage}, sizeof(AxpyPush)};
   const std::uint32_t n = require_f32(x, "axpy", "x");
   require_f32(y, "axpy", "y");
   require_same_numel(x, y, "axpy", "x", "y");
@@ -61,12 +61,11 @@ void axpy(Stream& stream, float alpha, const Tensor& x, const Tensor& y) {
 }
 
 void sum(Stream& stream, const Tensor& x, const Tensor& out_sum) {
-  static const KernelDef kReduce{"reduce_sum", {BindingKind::texel, BindingKind::storage},
-                                 sizeof(SumPush)};
+  static const KernelDef kReduce{
+      "reduce_sum", {BindingKind::texel, BindingKind::storage}, sizeof(SumPush)};
   std::uint32_t n = require_f32(x, "sum", "x");
   if (require_f32(out_sum, "sum", "out") != 1) {
-    throw InvalidArgument("sum", "out must have exactly one element, got " +
-                                     out_sum.shape().str());
+    throw InvalidArgument("sum", "out must have exactly one element, got " + out_sum.shape().str());
   }
   const Device device = stream.device();
   if (!device.info().subgroup_arithmetic) {

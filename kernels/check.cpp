@@ -7,7 +7,8 @@ namespace vkjr2::kernels {
 std::uint32_t require_f32(const Tensor& t, const char* op, const char* name) {
   if (!t.defined()) throw InvalidArgument(op, std::string(name) + " is undefined");
   if (t.dtype() != DType::f32) {
-    throw InvalidArgument(op, std::string(name) + " is " + dtype_name(t.dtype()) + ", expected f32");
+    throw InvalidArgument(op,
+                          std::string(name) + " is " + dtype_name(t.dtype()) + ", expected f32");
   }
   if (t.numel() == 0) {
     throw InvalidArgument(op, std::string(name) + " " + t.shape().str() + " is empty",
@@ -48,8 +49,8 @@ void require_same_numel(const Tensor& a, const Tensor& b, const char* op, const 
 
 void require_shape(const Tensor& t, const Shape& expected, const char* op, const char* name) {
   if (!(t.shape() == expected)) {
-    throw InvalidArgument(op, std::string(name) + " has shape " + t.shape().str() +
-                                  ", expected " + expected.str());
+    throw InvalidArgument(
+        op, std::string(name) + " has shape " + t.shape().str() + ", expected " + expected.str());
   }
 }
 

@@ -167,9 +167,10 @@ std::uint32_t compute_family(VkPhysicalDevice pd) {
   return best;
 }
 
-VKAPI_ATTR VkBool32 VKAPI_CALL on_debug_message(
-    VkDebugUtilsMessageSeverityFlagBitsEXT severity, VkDebugUtilsMessageTypeFlagsEXT types,
-    const VkDebugUtilsMessengerCallbackDataEXT* data, void* user) {
+VKAPI_ATTR VkBool32 VKAPI_CALL on_debug_message(VkDebugUtilsMessageSeverityFlagBitsEXT severity,
+                                                VkDebugUtilsMessageTypeFlagsEXT types,
+                                                const VkDebugUtilsMessengerCallbackDataEXT* data,
+                                                void* user) {
   // Loader chatter (GENERAL) is not a validation finding; validation and
   // performance warnings and errors are.
   if ((types & (VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
@@ -178,8 +179,8 @@ VKAPI_ATTR VkBool32 VKAPI_CALL on_debug_message(
   }
   if (severity < VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT) return VK_FALSE;
   auto* core = static_cast<DeviceCore*>(user);
-  std::string msg = (severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT) ? "error: "
-                                                                                 : "warning: ";
+  std::string msg =
+      (severity >= VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT) ? "error: " : "warning: ";
   msg += data->pMessage != nullptr ? data->pMessage : "(no text)";
   core->record_validation_message(std::move(msg));
   return VK_FALSE;
@@ -201,7 +202,8 @@ DeviceInfo query_device_info(VkPhysicalDevice pd, std::uint32_t index) {
   VkPhysicalDeviceProperties props{};
   vkGetPhysicalDeviceProperties(pd, &props);
 
-  VkPhysicalDeviceSubgroupProperties subgroup{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
+  VkPhysicalDeviceSubgroupProperties subgroup{
+      VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_SUBGROUP_PROPERTIES};
   VkPhysicalDeviceDriverProperties driver{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_DRIVER_PROPERTIES};
   VkPhysicalDeviceProperties2 props2{VK_STRUCTURE_TYPE_PHYSICAL_DEVICE_PROPERTIES_2};
   props2.pNext = &subgroup;
@@ -269,8 +271,8 @@ DeviceInfo query_device_info(VkPhysicalDevice pd, std::uint32_t index) {
   }
   for (std::uint32_t t = 0; t < mem.memoryTypeCount; ++t) {
     const auto f = mem.memoryTypes[t].propertyFlags;
-    const bool mappable_local = (f & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) &&
-                                (f & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT);
+    const bool mappable_local =
+        (f & VK_MEMORY_PROPERTY_DEVICE_LOCAL_BIT) && (f & VK_MEMORY_PROPERTY_HOST_VISIBLE_BIT);
     // A small host-visible window of a discrete GPU's memory (BAR) is not
     // unified memory: only a mappable type on the main heap counts.
     if (mappable_local && mem.memoryHeaps[mem.memoryTypes[t].heapIndex].size >= largest_local) {
@@ -411,9 +413,9 @@ DeviceCore::DeviceCore(const ExternalDevice& ext, const DeviceOptions& options) 
   queue = ext.queue;
   queue_family = ext.queue_family;
   info = query_device_info(physical_device, 0);
-  const bool host_push = std::any_of(
-      ext.enabled_extensions.begin(), ext.enabled_extensions.end(),
-      [](const std::string& e) { return e == VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME; });
+  const bool host_push =
+      std::any_of(ext.enabled_extensions.begin(), ext.enabled_extensions.end(),
+                  [](const std::string& e) { return e == VK_KHR_PUSH_DESCRIPTOR_EXTENSION_NAME; });
   push_descriptors = options.push_descriptors && host_push;
   try {
     init_common(options);
@@ -548,7 +550,8 @@ std::vector<std::string> DeviceCore::validation_messages() const {
 void DeviceCore::add_kernel_time(std::string_view kernel, double ns) {
   std::lock_guard lock(profile_mutex_);
   auto it = kernel_times_.find(kernel);
-  if (it == kernel_times_.end()) it = kernel_times_.emplace(std::string(kernel), KernelTime{}).first;
+  if (it == kernel_times_.end())
+    it = kernel_times_.emplace(std::string(kernel), KernelTime{}).first;
   it->second.calls += 1;
   it->second.total_ns += ns;
 }
@@ -632,14 +635,16 @@ std::uint32_t select_device(const std::vector<DeviceInfo>& devices, std::string_
       }
     }
     if (best == UINT32_MAX) {
-      throw NoDeviceError("select device", "no device supports Vulkan 1.1 (found " +
-                                               detail::device_list_text(devices) + ")",
-                          "update the Vulkan driver");
+      throw NoDeviceError(
+          "select device",
+          "no device supports Vulkan 1.1 (found " + detail::device_list_text(devices) + ")",
+          "update the Vulkan driver");
     }
     return best;
   }
-  const bool numeric = std::all_of(selector.begin(), selector.end(),
-                                   [](char c) { return std::isdigit(static_cast<unsigned char>(c)); });
+  const bool numeric = std::all_of(selector.begin(), selector.end(), [](char c) {
+    return std::isdigit(static_cast<unsigned char>(c));
+  });
   if (numeric) {
     const unsigned long index = std::strtoul(std::string(selector).c_str(), nullptr, 10);
     if (index >= devices.size()) {

@@ -53,9 +53,9 @@ struct DeviceInfo {
   std::uint64_t min_texel_buffer_offset_alignment = 0;
   std::uint64_t min_uniform_buffer_offset_alignment = 0;
   std::uint64_t non_coherent_atom_size = 0;
-  bool timestamps = false;        // timestamp queries on the compute queue
+  bool timestamps = false;  // timestamp queries on the compute queue
   double timestamp_period_ns = 0;
-  bool unified_memory = false;    // device-local memory the host can map
+  bool unified_memory = false;  // device-local memory the host can map
   bool push_descriptor_support = false;
   std::vector<MemoryHeapInfo> heaps;
 

@@ -97,7 +97,6 @@ class DeviceCore {
 
   mutable std::mutex profile_mutex_;
   std::map<std::string, KernelTime, std::less<>> kernel_times_;
-
 };
 
 // The memory behind one or more tensors (views share it).

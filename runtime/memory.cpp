@@ -14,8 +14,7 @@ VkDeviceSize align_up(VkDeviceSize value, VkDeviceSize alignment) {
 }  // namespace
 
 Allocator::Allocator(VkDevice device, MemoryChoice choice, VkBufferUsageFlags usage,
-                     VkDeviceSize block_bytes, VkDeviceSize alignment,
-                     VkDeviceSize max_allocation)
+                     VkDeviceSize block_bytes, VkDeviceSize alignment, VkDeviceSize max_allocation)
     : device_(device),
       choice_(choice),
       usage_(usage),

@@ -19,7 +19,7 @@ struct MemoryStats {
   std::uint64_t used_bytes = 0;      // handed out to live tensors
   std::size_t blocks = 0;
   std::size_t allocations = 0;
-  std::uint64_t heap_bytes = 0;      // size of the heap blocks come from
+  std::uint64_t heap_bytes = 0;  // size of the heap blocks come from
 };
 
 namespace detail {

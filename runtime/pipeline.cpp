@@ -55,8 +55,7 @@ VkDescriptorSetLayout DeviceCore::set_layout(const std::vector<BindingKind>& bin
   ci.bindingCount = static_cast<std::uint32_t>(b.size());
   ci.pBindings = b.data();
   VkDescriptorSetLayout layout = VK_NULL_HANDLE;
-  check(vkCreateDescriptorSetLayout(device, &ci, nullptr, &layout),
-        "create descriptor set layout");
+  check(vkCreateDescriptorSetLayout(device, &ci, nullptr, &layout), "create descriptor set layout");
   set_layouts_.emplace(bindings, layout);
   return layout;
 }
@@ -146,8 +145,8 @@ void DeviceCore::one_shot_copy(VkBuffer src, VkDeviceSize src_offset, VkBuffer d
   VkMemoryBarrier after{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
   after.srcAccessMask = VK_ACCESS_TRANSFER_WRITE_BIT;
   after.dstAccessMask = VK_ACCESS_HOST_READ_BIT;
-  vkCmdPipelineBarrier(transfer_cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT,
-                       0, 1, &after, 0, nullptr, 0, nullptr);
+  vkCmdPipelineBarrier(transfer_cmd_, VK_PIPELINE_STAGE_TRANSFER_BIT, VK_PIPELINE_STAGE_HOST_BIT, 0,
+                       1, &after, 0, nullptr, 0, nullptr);
   check(vkEndCommandBuffer(transfer_cmd_), "end command buffer");
   VkSubmitInfo submit{VK_STRUCTURE_TYPE_SUBMIT_INFO};
   submit.commandBufferCount = 1;

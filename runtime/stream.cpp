@@ -184,7 +184,8 @@ struct Stream::Impl {
           VK_QUERY_RESULT_64_BIT | VK_QUERY_RESULT_WAIT_BIT);
       if (qr == VK_SUCCESS) {
         for (std::size_t i = 0; i < timed.size(); ++i) {
-          const double ns = double(stamps[2 * i + 1] - stamps[2 * i]) * core->info.timestamp_period_ns;
+          const double ns =
+              double(stamps[2 * i + 1] - stamps[2 * i]) * core->info.timestamp_period_ns;
           core->add_kernel_time(timed[i], ns);
         }
       }
@@ -272,9 +273,10 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
   const std::uint32_t counts[3] = {groups.x, groups.y, groups.z};
   for (int i = 0; i < 3; ++i) {
     if (counts[i] > info.max_workgroup_count[i]) {
-      throw InvalidArgument(op, "workgroup count " + std::to_string(counts[i]) + " on axis " +
-                                    std::to_string(i) + " exceeds the device limit " +
-                                    std::to_string(info.max_workgroup_count[i]),
+      throw InvalidArgument(op,
+                            "workgroup count " + std::to_string(counts[i]) + " on axis " +
+                                std::to_string(i) + " exceeds the device limit " +
+                                std::to_string(info.max_workgroup_count[i]),
                             "split the input into smaller batches");
     }
   }
@@ -310,8 +312,8 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
       align = info.min_texel_buffer_offset_alignment;
       const std::uint32_t fb = format_bytes_of(a.format);
       if (fb == 0 || bytes % fb != 0) {
-        throw InvalidArgument(what, "texel format does not divide the tensor's " +
-                                        std::to_string(bytes) + " bytes");
+        throw InvalidArgument(
+            what, "texel format does not divide the tensor's " + std::to_string(bytes) + " bytes");
       }
       limit = info.max_texel_buffer_elements * fb;
     }
@@ -323,9 +325,10 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
                             "split it into chunks (e.g. fewer images per batch)");
     }
     if (align > 0 && offset % align != 0) {
-      throw InvalidArgument(what, "view offset " + std::to_string(offset) +
-                                      " bytes is not a multiple of the device's alignment " +
-                                      std::to_string(align),
+      throw InvalidArgument(what,
+                            "view offset " + std::to_string(offset) +
+                                " bytes is not a multiple of the device's alignment " +
+                                std::to_string(align),
                             "start views at aligned element offsets");
     }
     touches.push_back({a.tensor.vk_buffer(), offset, offset + bytes, a.access != Access::read});
@@ -358,8 +361,8 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
   } else {
     VkDescriptorSet set = s.allocate_set(p.set_layout);
     for (auto& w : writes) w.dstSet = set;
-    vkUpdateDescriptorSets(s.core->device, static_cast<std::uint32_t>(writes.size()),
-                           writes.data(), 0, nullptr);
+    vkUpdateDescriptorSets(s.core->device, static_cast<std::uint32_t>(writes.size()), writes.data(),
+                           0, nullptr);
     vkCmdBindDescriptorSets(s.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0,
                             nullptr);
   }
@@ -385,9 +388,9 @@ void Stream::copy(const Tensor& src, const Tensor& dst) {
   }
   if (src.bytes() != dst.bytes()) {
     throw InvalidArgument("Stream::copy", "source " + src.shape().str() + " has " +
-                                              std::to_string(src.bytes()) +
-                                              " bytes, destination " + dst.shape().str() +
-                                              " has " + std::to_string(dst.bytes()));
+                                              std::to_string(src.bytes()) + " bytes, destination " +
+                                              dst.shape().str() + " has " +
+                                              std::to_string(dst.bytes()));
   }
   if (src.bytes() == 0) return;
   Impl& s = *impl_;
@@ -413,7 +416,9 @@ void Stream::fill(const Tensor& dst, std::uint32_t bits) {
   s.keep.push_back(dst.storage());
 }
 
-void Stream::fill(const Tensor& dst, float value) { fill(dst, std::bit_cast<std::uint32_t>(value)); }
+void Stream::fill(const Tensor& dst, float value) {
+  fill(dst, std::bit_cast<std::uint32_t>(value));
+}
 
 void Stream::submit() {
   Impl& s = *impl_;

@@ -53,7 +53,7 @@ class Stream {
     wait();
   }
 
-  bool recording() const;         // has unsubmitted commands
+  bool recording() const;          // has unsubmitted commands
   std::size_t dispatches() const;  // recorded since the last wait
   std::size_t barriers() const;    // inserted since the last wait
   const Device& device() const;

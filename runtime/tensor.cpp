@@ -134,18 +134,20 @@ void* Tensor::mapped() const noexcept {
 void Tensor::check_host_size(std::size_t size, const char* op) const {
   if (!storage_) throw InvalidArgument(op, "the tensor is undefined");
   if (size != bytes()) {
-    throw InvalidArgument(op, "host data has " + std::to_string(size) + " bytes but tensor " +
-                                  shape_.str() + " " + dtype_name(dtype_) + " has " +
-                                  std::to_string(bytes()),
+    throw InvalidArgument(op,
+                          "host data has " + std::to_string(size) + " bytes but tensor " +
+                              shape_.str() + " " + dtype_name(dtype_) + " has " +
+                              std::to_string(bytes()),
                           "pass exactly numel() values");
   }
 }
 
 void Tensor::upload(std::span<const float> values) const {
   if (dtype_ != DType::f32) {
-    throw InvalidArgument("Tensor::upload", std::string("tensor is ") + dtype_name(dtype_) +
-                                                ", float values need f32",
-                          "use upload_bytes");
+    throw InvalidArgument(
+        "Tensor::upload",
+        std::string("tensor is ") + dtype_name(dtype_) + ", float values need f32",
+        "use upload_bytes");
   }
   upload_bytes(values.data(), values.size_bytes());
 }
@@ -168,9 +170,10 @@ std::vector<float> Tensor::download() const {
 
 void Tensor::download(std::span<float> out) const {
   if (dtype_ != DType::f32) {
-    throw InvalidArgument("Tensor::download", std::string("tensor is ") + dtype_name(dtype_) +
-                                                  ", float values need f32",
-                          "use download_bytes");
+    throw InvalidArgument(
+        "Tensor::download",
+        std::string("tensor is ") + dtype_name(dtype_) + ", float values need f32",
+        "use download_bytes");
   }
   download_bytes(out.data(), out.size_bytes());
 }

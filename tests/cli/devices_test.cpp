@@ -1,10 +1,10 @@
 // The vkjr2 binary, run as a user would.
 #include <gtest/gtest.h>
+#include <sys/wait.h>
 
 #include <array>
 #include <cstdio>
 #include <string>
-#include <sys/wait.h>
 
 namespace {
 

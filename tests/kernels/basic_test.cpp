@@ -16,7 +16,8 @@ namespace {
 std::vector<std::int64_t> sizes(std::uint32_t seed) {
   std::vector<std::int64_t> s = {1, 7, 255, 256, 1023, 1024, 1025, 2047, 2048, 2049, 65537};
   std::mt19937 rng(seed);
-  for (int i = 0; i < 4; ++i) s.push_back(std::uniform_int_distribution<std::int64_t>(1, 3'000'000)(rng));
+  for (int i = 0; i < 4; ++i)
+    s.push_back(std::uniform_int_distribution<std::int64_t>(1, 3'000'000)(rng));
   return s;
 }
 
@@ -61,7 +62,8 @@ TEST(BasicKernels, SumMatchesReference) {
     double abs_sum = 0;
     for (float v : xs) abs_sum += std::fabs(v);
     // fp32 tree sum: error bounded by ~log2(n)·eps·Σ|x|.
-    EXPECT_NEAR(out.download()[0], ref::sum(xs), 1e-4 * abs_sum / std::sqrt(double(n)) + 1e-5 * abs_sum);
+    EXPECT_NEAR(out.download()[0], ref::sum(xs),
+                1e-4 * abs_sum / std::sqrt(double(n)) + 1e-5 * abs_sum);
   }
 }
 

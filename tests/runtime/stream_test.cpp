@@ -82,7 +82,7 @@ TEST(Stream, TransferCommandsAreOrderedWithDispatches) {
   Tensor a = Tensor::from(dev, {5000}, v);
   Tensor b = Tensor::empty(dev, {5000});
   Stream s(dev);
-  s.fill(b, 0.f);              // transfer write
+  s.fill(b, 0.f);               // transfer write
   kernels::axpy(s, 3.f, a, b);  // compute reads and writes b
   s.copy(b, a);                 // transfer reads b, writes a (read by axpy: WAR)
   s.run();

@@ -6,6 +6,8 @@
 // differences (L(x + h e_i) − L(x − h e_i)) / 2h on sampled coordinates.
 #pragma once
 
+#include <gtest/gtest.h>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -14,8 +16,6 @@
 #include <span>
 #include <string>
 #include <vector>
-
-#include <gtest/gtest.h>
 
 namespace vkjr2::test {
 
@@ -48,7 +48,8 @@ inline void expect_gradient_matches(const std::function<double(std::span<const f
     const double minus = loss(x);
     x[i] = saved;
     const double numeric = (plus - minus) / (2 * o.step);
-    const double tol = o.atol + o.rtol * std::max(std::fabs(numeric), std::fabs(double(analytic[i])));
+    const double tol =
+        o.atol + o.rtol * std::max(std::fabs(numeric), std::fabs(double(analytic[i])));
     EXPECT_NEAR(analytic[i], numeric, tol)
         << what << ": d/dx[" << i << "] analytic " << analytic[i] << " vs numeric " << numeric
         << " (seed " << o.seed << ", step " << o.step << ")";

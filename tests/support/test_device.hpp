@@ -23,6 +23,7 @@ std::size_t shutdown();
 
 // Seeded random values in [lo, hi); the seed is printed on failure by callers
 // through SCOPED_TRACE.
-std::vector<float> random_floats(std::size_t n, std::uint32_t seed, float lo = -1.f, float hi = 1.f);
+std::vector<float> random_floats(std::size_t n, std::uint32_t seed, float lo = -1.f,
+                                 float hi = 1.f);
 
 }  // namespace vkjr2::test
