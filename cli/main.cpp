@@ -21,7 +21,7 @@ bool has_subcommand(const CLI::App& app, const std::string& name) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
+int run(int argc, char** argv) {
   CLI::App app{"vkjr2 — Joint Restoration-for-Recognition on Vulkan compute shaders"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("vkjr2 ") + VKJR2_VERSION);
@@ -52,4 +52,13 @@ int main(int argc, char** argv) {
     return 1;
   }
   return 0;
+}
+
+int main(int argc, char** argv) {
+  try {
+    return run(argc, argv);
+  } catch (...) {  // building the parser itself failed (out of memory)
+    std::fprintf(stderr, "vkjr2: error: unexpected failure while starting\n");
+    return 1;
+  }
 }

@@ -152,7 +152,7 @@ TEST(Device, ProfilingReportsKernelTimes) {
   s.run();
   const std::string report = dev.profile_report();
   EXPECT_NE(report.find("axpy"), std::string::npos) << report;
-  EXPECT_NE(report.find("3"), std::string::npos) << report;
+  EXPECT_NE(report.find('3'), std::string::npos) << report;
 }
 
 // --- adoption of a host application's Vulkan objects ----------------------

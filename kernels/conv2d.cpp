@@ -1,0 +1,454 @@
+#include <vkjr2/kernels/check.hpp>
+#include <vkjr2/kernels/conv2d.hpp>
+
+#include <algorithm>
+#include <string>
+
+namespace vkjr2::kernels {
+namespace {
+
+// Mirrors the push-constant block in shaders/conv2d_common.glsl.
+struct ConvPush {
+  std::uint32_t n, cin, h, w;
+  std::uint32_t cout, hout, wout, kh;
+  std::uint32_t kw, sy, sx, dy;
+  std::uint32_t dx;
+  std::int32_t pt, pl;
+  std::uint32_t groups;
+  std::uint32_t act;
+  float slope;
+  std::uint32_t has_bias;
+  std::uint32_t hp, wp;
+  std::uint32_t wblocks;
+  std::uint32_t cin_g, cout_g;
+};
+static_assert(sizeof(ConvPush) == 24 * 4 && sizeof(ConvPush) <= 128);
+
+constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
+constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
+constexpr std::uint32_t kBlockedGroup = 64;
+constexpr int kMaxBlockedTaps = 7;  // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
+constexpr int kMaxBlockedStep = 4;  // stride_x, dilation_x ≤ 4
+
+const KernelDef kDirect{
+    "conv2d_direct",
+    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
+    sizeof(ConvPush)};
+const KernelDef kBlocked{
+    "conv2d_blocked",
+    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
+    sizeof(ConvPush)};
+const KernelDef kPointwise{
+    "conv2d_pointwise",
+    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
+    sizeof(ConvPush)};
+const KernelDef kDepthwise{
+    "conv2d_depthwise",
+    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
+    sizeof(ConvPush)};
+const KernelDef kPad{"conv2d_pad", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
+const KernelDef kPack{"conv2d_pack", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
+const KernelDef kBwdData{"conv2d_bwd_data",
+                         {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                         sizeof(ConvPush)};
+const KernelDef kBwdWeight{"conv2d_bwd_weight",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                           sizeof(ConvPush)};
+const KernelDef kBwdWeightBlocked{"conv2d_bwd_weight_blocked",
+                                  {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                                  sizeof(ConvPush)};
+const KernelDef kBwdBias{
+    "conv2d_bwd_bias", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
+
+struct Dims {
+  std::int64_t n, cin, h, w, cout, kh, kw, hout, wout;
+};
+
+std::string str(std::int64_t v) { return std::to_string(v); }
+
+void check_params(const char* op, const Conv2dParams& p) {
+  if (p.stride_y < 1 || p.stride_x < 1) {
+    throw InvalidArgument(op,
+                          "stride (" + str(p.stride_y) + ", " + str(p.stride_x) + ") must be >= 1");
+  }
+  if (p.dilation_y < 1 || p.dilation_x < 1) {
+    throw InvalidArgument(
+        op, "dilation (" + str(p.dilation_y) + ", " + str(p.dilation_x) + ") must be >= 1");
+  }
+  if (p.pad.top < 0 || p.pad.bottom < 0 || p.pad.left < 0 || p.pad.right < 0) {
+    throw InvalidArgument(op, "padding (top " + str(p.pad.top) + ", bottom " + str(p.pad.bottom) +
+                                  ", left " + str(p.pad.left) + ", right " + str(p.pad.right) +
+                                  ") must be >= 0");
+  }
+  if (p.groups < 1) throw InvalidArgument(op, "groups " + str(p.groups) + " must be >= 1");
+}
+
+// Validates x [N, Cin, H, W] and weight [Cout, Cin/groups, KH, KW] against p.
+Dims dims_of(const char* op, const Shape& x, const Shape& w, const Conv2dParams& p) {
+  check_params(op, p);
+  if (x.rank() != 4) {
+    throw InvalidArgument(op, "x " + x.str() + " must be 4-D [N, Cin, H, W]");
+  }
+  if (w.rank() != 4) {
+    throw InvalidArgument(op, "weight " + w.str() + " must be 4-D [Cout, Cin/groups, KH, KW]",
+                          "repack HWIO (TF) weights to OIHW");
+  }
+  if (x.numel() == 0 || w.numel() == 0) {
+    throw InvalidArgument(op, "x " + x.str() + " or weight " + w.str() + " is empty",
+                          "skip the op for empty inputs");
+  }
+  Dims d{x[0], x[1], x[2], x[3], w[0], w[2], w[3], 0, 0};
+  if (d.cin % p.groups != 0 || d.cout % p.groups != 0) {
+    throw InvalidArgument(op, "groups " + str(p.groups) + " must divide Cin " + str(d.cin) +
+                                  " and Cout " + str(d.cout));
+  }
+  if (w[1] != d.cin / p.groups) {
+    throw InvalidArgument(op, "weight " + w.str() + " has " + str(w[1]) +
+                                  " input channels, expected Cin/groups = " +
+                                  str(d.cin / p.groups) + " (x " + x.str() + ")");
+  }
+  const std::int64_t span_y = (d.kh - 1) * p.dilation_y + 1;
+  const std::int64_t span_x = (d.kw - 1) * p.dilation_x + 1;
+  const std::int64_t in_y = d.h + p.pad.top + p.pad.bottom;
+  const std::int64_t in_x = d.w + p.pad.left + p.pad.right;
+  if (span_y > in_y || span_x > in_x) {
+    throw InvalidArgument(op,
+                          "kernel extent " + str(span_y) + "×" + str(span_x) +
+                              " exceeds the padded input " + str(in_y) + "×" + str(in_x),
+                          "pad the input or use a smaller kernel");
+  }
+  d.hout = (in_y - span_y) / p.stride_y + 1;
+  d.wout = (in_x - span_x) / p.stride_x + 1;
+  return d;
+}
+
+ConvPush push_of(const Dims& d, const Conv2dParams& p) {
+  ConvPush c{};
+  c.n = std::uint32_t(d.n);
+  c.cin = std::uint32_t(d.cin);
+  c.h = std::uint32_t(d.h);
+  c.w = std::uint32_t(d.w);
+  c.cout = std::uint32_t(d.cout);
+  c.hout = std::uint32_t(d.hout);
+  c.wout = std::uint32_t(d.wout);
+  c.kh = std::uint32_t(d.kh);
+  c.kw = std::uint32_t(d.kw);
+  c.sy = std::uint32_t(p.stride_y);
+  c.sx = std::uint32_t(p.stride_x);
+  c.dy = std::uint32_t(p.dilation_y);
+  c.dx = std::uint32_t(p.dilation_x);
+  c.pt = p.pad.top;
+  c.pl = p.pad.left;
+  c.groups = std::uint32_t(p.groups);
+  c.act = std::uint32_t(p.activation);
+  c.slope = p.leaky_slope;
+  c.cin_g = std::uint32_t(d.cin / p.groups);
+  c.cout_g = std::uint32_t(d.cout / p.groups);
+  return c;
+}
+
+// Padded-input geometry for the blocked and depthwise kernels: every row read
+// by a block of kPx output pixels lies inside [hp, wp].
+void set_padded(ConvPush& c) {
+  c.wblocks = (c.wout + kPx - 1) / kPx;
+  c.hp = (c.hout - 1) * c.sy + (c.kh - 1) * c.dy + 1;
+  // wp rounded up to 4: rows start 16-byte aligned, read as vec4 texels.
+  c.wp = div_up((c.wblocks * kPx - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
+}
+
+std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p) {
+  ConvPush c = push_of(d, p);
+  set_padded(c);
+  return std::uint64_t(d.n) * std::uint64_t(d.cin) * c.hp * c.wp;
+}
+
+bool small_kernel(const Dims& d, const Conv2dParams& p) {
+  return d.kh <= kMaxBlockedTaps && d.kw <= kMaxBlockedTaps && p.stride_x <= kMaxBlockedStep &&
+         p.dilation_x <= kMaxBlockedStep;
+}
+
+// Empty string when `algo` can run these shapes, else why not.
+std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, const Conv2dParams& p) {
+  const std::uint64_t texel_limit =
+      std::min<std::uint64_t>(info.max_texel_buffer_elements, std::uint64_t(1) << 31);
+  switch (algo) {
+    case Conv2dAlgo::auto_select:
+    case Conv2dAlgo::direct:
+      return {};
+    case Conv2dAlgo::blocked:
+      if (p.groups != 1) return "needs groups == 1";
+      if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
+      if (padded_elements(d, p) > texel_limit) return "the padded input exceeds the texel limit";
+      return {};
+    case Conv2dAlgo::pointwise:
+      if (p.groups != 1 || d.kh != 1 || d.kw != 1 || p.stride_y != 1 || p.stride_x != 1 ||
+          p.pad.top != 0 || p.pad.bottom != 0 || p.pad.left != 0 || p.pad.right != 0) {
+        return "needs a 1×1 kernel, stride 1, no padding and groups == 1";
+      }
+      return {};
+    case Conv2dAlgo::depthwise:
+      if (p.groups != d.cin || d.cout % d.cin != 0) return "needs groups == Cin";
+      if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
+      if (padded_elements(d, p) > texel_limit) return "the padded input exceeds the texel limit";
+      return {};
+  }
+  return "unknown variant";
+}
+
+Conv2dAlgo select(const DeviceInfo& info, const Dims& d, const Conv2dParams& p, const char* op) {
+  if (p.algo != Conv2dAlgo::auto_select) {
+    const std::string why = why_not(p.algo, info, d, p);
+    if (!why.empty()) {
+      throw InvalidArgument(op,
+                            std::string("variant ") + conv2d_algo_name(p.algo) +
+                                " cannot run this convolution: " + why,
+                            "use Conv2dAlgo::auto_select");
+    }
+    return p.algo;
+  }
+  // The one selection point. On every device so far the register-blocked
+  // kernels win (LAVAPIPE.md); a GPU-specific shared-memory variant would be
+  // chosen here from info.type.
+  for (Conv2dAlgo a : {Conv2dAlgo::pointwise, Conv2dAlgo::depthwise, Conv2dAlgo::blocked}) {
+    if (why_not(a, info, d, p).empty()) return a;
+  }
+  return Conv2dAlgo::direct;
+}
+
+// OIHW (or, transposed, the [Cin][Cout] weight of the conv whose backward-data
+// this is, flipped) → [Cout/8][Cin][KH][KW][8].
+Tensor pack_weights(Stream& stream, const Tensor& weight, const ConvPush& c, bool transposed) {
+  const std::uint64_t n = std::uint64_t(div_up(c.cout, kCoBlock)) * c.cin * c.kh * c.kw * kCoBlock;
+  Tensor packed = Tensor::empty(stream.device(), Shape{std::int64_t(n)});
+  stream.dispatch(kPack, {texel(weight), out(packed)}, c,
+                  groups_1d(div_up(n, 256), stream.device().info()), {transposed ? 1u : 0u});
+  return packed;
+}
+
+// Zero-padded copy of x for the blocked/depthwise kernels (c has set_padded()).
+Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
+  const std::uint64_t n = std::uint64_t(c.n) * c.cin * c.hp * c.wp;
+  Tensor xp = Tensor::empty(stream.device(), Shape{std::int64_t(n)});
+  stream.dispatch(kPad, {texel(x), out(xp)}, c, groups_1d(div_up(n, 1024), stream.device().info()));
+  return xp;
+}
+
+// The forward dispatch of one variant; c has everything but the padded geometry.
+void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
+                 const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight) {
+  const DeviceInfo& info = stream.device().info();
+  const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
+  c.has_bias = bias != nullptr ? 1u : 0u;
+  switch (algo) {
+    case Conv2dAlgo::auto_select:
+    case Conv2dAlgo::direct: {
+      const std::uint64_t n = std::uint64_t(c.n) * c.cout * c.hout * c.wout;
+      stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y)}, c,
+                      groups_1d(div_up(n, 256), info));
+      return;
+    }
+    case Conv2dAlgo::pointwise: {
+      const Tensor packed = pack_weights(stream, weight, c, transposed_weight);
+      const Groups g{div_up(std::uint64_t(div_up(std::uint64_t(c.h) * c.w, kPx)), kBlockedGroup),
+                     div_up(c.cout, kCoBlock), c.n};
+      const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
+      stream.dispatch(kPointwise,
+                      {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
+                      c, g, {vec4 ? 1u : 0u});
+      return;
+    }
+    case Conv2dAlgo::blocked: {
+      set_padded(c);
+      const Tensor packed = pack_weights(stream, weight, c, transposed_weight);
+      const Tensor xp = pad_input(stream, x, c);
+      const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup),
+                     div_up(c.cout, kCoBlock), c.n};
+      stream.dispatch(kBlocked,
+                      {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
+                      c, g, {c.kh, c.kw, c.sx, c.dx});
+      return;
+    }
+    case Conv2dAlgo::depthwise: {
+      set_padded(c);
+      const Tensor xp = pad_input(stream, x, c);
+      const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup), c.cout, c.n};
+      stream.dispatch(kDepthwise,
+                      {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(y)},
+                      c, g, {c.kh, c.kw, c.sx, c.dx});
+      return;
+    }
+  }
+}
+
+}  // namespace
+
+const char* conv2d_algo_name(Conv2dAlgo algo) noexcept {
+  switch (algo) {
+    case Conv2dAlgo::auto_select:
+      return "auto_select";
+    case Conv2dAlgo::direct:
+      return "direct";
+    case Conv2dAlgo::blocked:
+      return "blocked";
+    case Conv2dAlgo::pointwise:
+      return "pointwise";
+    case Conv2dAlgo::depthwise:
+      return "depthwise";
+  }
+  return "?";
+}
+
+Padding2d same_padding(std::int64_t in_h, std::int64_t in_w, int kh, int kw, int stride_y,
+                       int stride_x, int dilation_y, int dilation_x) {
+  if (in_h < 1 || in_w < 1 || kh < 1 || kw < 1 || stride_y < 1 || stride_x < 1 || dilation_y < 1 ||
+      dilation_x < 1) {
+    throw InvalidArgument("same_padding", "sizes, kernel, stride and dilation must be >= 1");
+  }
+  auto axis = [](std::int64_t in, int k, int s, int d, int& before, int& after) {
+    const std::int64_t out = (in + s - 1) / s;
+    const std::int64_t total = std::max<std::int64_t>((out - 1) * s + (k - 1) * d + 1 - in, 0);
+    before = int(total / 2);
+    after = int(total - total / 2);
+  };
+  Padding2d pad;
+  axis(in_h, kh, stride_y, dilation_y, pad.top, pad.bottom);
+  axis(in_w, kw, stride_x, dilation_x, pad.left, pad.right);
+  return pad;
+}
+
+Shape conv2d_output_shape(const Shape& x, const Shape& weight, const Conv2dParams& p) {
+  const Dims d = dims_of("conv2d_output_shape", x, weight, p);
+  return Shape{d.n, d.cout, d.hout, d.wout};
+}
+
+Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& weight,
+                         const Conv2dParams& p) {
+  return select(info, dims_of("conv2d_select", x, weight, p), p, "conv2d_select");
+}
+
+void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
+            const Tensor& y, const Conv2dParams& p) {
+  const char* op = "conv2d";
+  require_f32_rank(x, 4, op, "x");
+  require_f32_rank(weight, 4, op, "weight");
+  const Dims d = dims_of(op, x.shape(), weight.shape(), p);
+  require_f32(y, op, "y");
+  require_shape(y, Shape{d.n, d.cout, d.hout, d.wout}, op, "y");
+  if (bias != nullptr) {
+    require_f32(*bias, op, "bias");
+    require_shape(*bias, Shape{d.cout}, op, "bias");
+  }
+  const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
+  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false);
+}
+
+void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
+                          const Conv2dParams& p) {
+  const char* op = "conv2d_backward_data";
+  require_f32_rank(dx, 4, op, "dx");
+  require_f32_rank(weight, 4, op, "weight");
+  const Dims d = dims_of(op, dx.shape(), weight.shape(), p);
+  require_f32(dy, op, "dy");
+  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+
+  // Stride 1, groups 1: dX = conv(dY, W'), W'[ci][co] = W[co][ci] flipped in
+  // both axes, padding (K−1)·d − pad (may be negative: the pad pass crops).
+  Conv2dParams tp;
+  tp.dilation_y = p.dilation_y;
+  tp.dilation_x = p.dilation_x;
+  const bool transposable =
+      p.groups == 1 && p.stride_y == 1 && p.stride_x == 1 && small_kernel(d, tp);
+  const bool use_blocked =
+      p.algo == Conv2dAlgo::blocked || (p.algo == Conv2dAlgo::auto_select && transposable);
+  if (p.algo != Conv2dAlgo::auto_select && p.algo != Conv2dAlgo::direct &&
+      !(p.algo == Conv2dAlgo::blocked && transposable)) {
+    throw InvalidArgument(
+        op, std::string("variant ") + conv2d_algo_name(p.algo) + " cannot run this backward-data",
+        "use auto_select or direct (blocked needs stride 1 and groups 1)");
+  }
+  if (use_blocked) {
+    ConvPush c{};
+    c.n = std::uint32_t(d.n);
+    c.cin = std::uint32_t(d.cout);
+    c.h = std::uint32_t(d.hout);
+    c.w = std::uint32_t(d.wout);
+    c.cout = std::uint32_t(d.cin);
+    c.hout = std::uint32_t(d.h);
+    c.wout = std::uint32_t(d.w);
+    c.kh = std::uint32_t(d.kh);
+    c.kw = std::uint32_t(d.kw);
+    c.sy = c.sx = 1;
+    c.dy = std::uint32_t(p.dilation_y);
+    c.dx = std::uint32_t(p.dilation_x);
+    c.pt = std::int32_t((d.kh - 1) * p.dilation_y - p.pad.top);
+    c.pl = std::int32_t((d.kw - 1) * p.dilation_x - p.pad.left);
+    c.groups = 1;
+    c.cin_g = c.cin;
+    c.cout_g = c.cout;
+    const std::string why =
+        padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp) >
+                stream.device().info().max_texel_buffer_elements
+            ? "the padded input exceeds the texel limit"
+            : "";
+    if (why.empty()) {
+      run_forward(stream, Conv2dAlgo::blocked, dy, weight, nullptr, dx, c, true);
+      return;
+    }
+    if (p.algo == Conv2dAlgo::blocked) throw InvalidArgument(op, why, "use auto_select");
+  }
+  const ConvPush c = push_of(d, p);
+  const std::uint64_t n = std::uint64_t(d.n) * d.cin * d.h * d.w;
+  stream.dispatch(kBwdData, {texel(dy), texel(weight), out(dx)}, c,
+                  groups_1d(div_up(n, 256), stream.device().info()));
+}
+
+void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
+                            const Tensor& dweight, const Tensor* dbias, const Conv2dParams& p) {
+  const char* op = "conv2d_backward_weight";
+  require_f32_rank(x, 4, op, "x");
+  require_f32_rank(dweight, 4, op, "dweight");
+  const Dims d = dims_of(op, x.shape(), dweight.shape(), p);
+  require_f32(dy, op, "dy");
+  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+  if (dbias != nullptr) {
+    require_f32(*dbias, op, "dbias");
+    require_shape(*dbias, Shape{d.cout}, op, "dbias");
+  }
+  const DeviceInfo& info = stream.device().info();
+  ConvPush c = push_of(d, p);
+  // groups == 1: the blocked kernel over zero-padded x and dy; else (or when
+  // p.algo == direct) one dw element per invocation.
+  const bool blocked =
+      p.algo != Conv2dAlgo::direct && why_not(Conv2dAlgo::blocked, info, d, p).empty();
+  if (blocked) {
+    set_padded(c);
+    const Tensor xp = pad_input(stream, x, c);
+    ConvPush dc = c;  // dy [n, cout, hout, wout] → [n, cout, hout, wblocks·8]
+    dc.cin = c.cout;
+    dc.h = dc.hp = c.hout;
+    dc.w = c.wout;
+    dc.wp = c.wblocks * kPx;
+    dc.pt = dc.pl = 0;
+    const Tensor dyp = pad_input(stream, dy, dc);
+    stream.dispatch(
+        kBwdWeightBlocked,
+        {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(dyp, VK_FORMAT_R32G32B32A32_SFLOAT),
+         out(dweight)},
+        c, Groups{div_up(std::uint64_t(c.cin) * c.kh, kBlockedGroup), div_up(c.cout, kCoBlock), 1},
+        {c.kw, c.sx, c.dx});
+  } else {
+    stream.dispatch(kBwdWeight, {texel(x), texel(dy), out(dweight)}, c,
+                    groups_1d(div_up(std::uint64_t(dweight.numel()), 64), info));
+  }
+  if (dbias != nullptr) {
+    if (!info.subgroup_arithmetic) {
+      throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
+                  "pick another device with VKJR2_DEVICE");
+    }
+    stream.dispatch(kBwdBias, {texel(dy), out(*dbias)}, c, groups_1d(d.cout, info));
+  }
+}
+
+}  // namespace vkjr2::kernels

@@ -1,0 +1,105 @@
+// 2-D convolution (cross-correlation, as in PyTorch/TF): forward with bias and
+// fused activation, backward-data (dX) and backward-weight (dW, dbias).
+//
+// Layouts (f32, contiguous):
+//   x      [N, Cin, H, W]                 (NCHW)
+//   weight [Cout, Cin/groups, KH, KW]     (OIHW, as PyTorch). TF.js/Keras HWIO
+//          weights must be repacked to OIHW by the caller once at load time.
+//          The fast variants repack OIHW internally (one small dispatch per call).
+//   bias   [Cout] (optional: nullptr)
+//   y      [N, Cout, Hout, Wout], Hout = (H + pad_top + pad_bottom - ((KH-1)·dy + 1)) / sy + 1.
+//
+// y[n,co,oy,ox] = act(bias[co] + Σ_{ci∈group(co), ky, kx}
+//                 w[co,ci,ky,kx] · x[n, g·Cin/groups + ci, oy·sy − pad_top + ky·dy,
+//                                                          ox·sx − pad_left + kx·dx])
+// with zeros outside the image. act: none, ReLU, LeakyReLU(slope) after the bias.
+//
+// Backward: the backward kernels assume NO activation. With a fused activation
+// the caller applies the activation's backward to dY first (using the forward
+// output y: ReLU/LeakyReLU gradients depend only on sign(y)) and passes the
+// result as dy.
+//
+// Variants (chosen in one place, conv2d_select(); all tested):
+//   direct     any parameters; one output per invocation (slow fallback).
+//   blocked    groups == 1, KH, KW <= 7, stride_x, dilation_x <= 4: 8 output
+//              channels × 8 output pixels per invocation; the input is
+//              zero-padded into a temporary (one cheap pass) and read as vec4
+//              texels, weights packed to [Cout/8][Cin][KH][KW][8] (one small
+//              pass per call) and read as vec4 texels; KH/KW/stride_x/
+//              dilation_x are specialization constants. 3×3 64→64 128² on
+//              lavapipe (shared 2-core machine): 10–17 GFLOP/s.
+//   pointwise  1×1, stride 1, no padding, groups == 1 (a matmul): 8 channels ×
+//              8 consecutive pixels per invocation (vec4 reads when H·W % 4 == 0).
+//   depthwise  groups == Cin, Cout a multiple of Cin (channel multiplier):
+//              8 pixels of one channel per invocation, padded input as for blocked.
+// Backward-data reuses the blocked kernel (flipped, transposed weights) for
+// stride 1, groups 1 convolutions, and a direct gather otherwise.
+// Temporaries (padded input, packed weights) come from Tensor::empty and are
+// kept alive by the Stream.
+#pragma once
+
+#include <vkjr2/runtime/stream.hpp>
+
+#include <cstdint>
+
+namespace vkjr2::kernels {
+
+enum class Activation : std::uint8_t { none, relu, leaky_relu };
+
+enum class Conv2dAlgo : std::uint8_t {
+  auto_select,  // conv2d_select() picks
+  direct,
+  blocked,
+  pointwise,
+  depthwise,
+};
+const char* conv2d_algo_name(Conv2dAlgo algo) noexcept;
+
+struct Padding2d {
+  int top = 0, bottom = 0, left = 0, right = 0;
+};
+
+struct Conv2dParams {
+  int stride_y = 1, stride_x = 1;
+  int dilation_y = 1, dilation_x = 1;
+  Padding2d pad;  // explicit, asymmetric allowed
+  int groups = 1;
+  Activation activation = Activation::none;  // forward only, applied after the bias
+  float leaky_slope = 0.2f;                  // LeakyReLU: y = x < 0 ? slope·x : x
+  // Forces a variant (tests, benchmarks); auto_select in normal use. A forced
+  // variant that cannot run these parameters throws InvalidArgument.
+  Conv2dAlgo algo = Conv2dAlgo::auto_select;
+};
+
+// TF "SAME" padding for one axis: total = max((ceil(in/s) − 1)·s + (k−1)·d + 1 − in, 0),
+// before = total / 2, after = total − before (the extra pixel goes after).
+Padding2d same_padding(std::int64_t in_h, std::int64_t in_w, int kh, int kw, int stride_y,
+                       int stride_x, int dilation_y = 1, int dilation_x = 1);
+
+// [N, Cout, Hout, Wout] for x [N, Cin, H, W] and weight [Cout, Cin/groups, KH, KW];
+// throws InvalidArgument for inconsistent shapes or parameters.
+Shape conv2d_output_shape(const Shape& x, const Shape& weight, const Conv2dParams& p);
+
+// The variant conv2d() runs for these shapes on a device (p.algo when not
+// auto_select, after checking it can run them; else InvalidArgument).
+Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& weight,
+                         const Conv2dParams& p);
+
+// y = act(conv(x, weight) + bias). bias may be nullptr.
+void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
+            const Tensor& y, const Conv2dParams& p);
+
+// dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
+// shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces
+// the gather kernel); blocked forces the transposed-forward path.
+void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
+                          const Conv2dParams& p);
+
+// dweight = ∂L/∂w [Cout, Cin/groups, KH, KW] and, when dbias is not nullptr,
+// dbias = ∂L/∂b [Cout]; both overwritten. x is the forward input. groups == 1
+// runs a blocked kernel (8 output channels × KW taps per invocation); p.algo ==
+// direct forces one dw element per invocation (any groups).
+void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
+                            const Tensor& dweight, const Tensor* dbias, const Conv2dParams& p);
+
+}  // namespace vkjr2::kernels

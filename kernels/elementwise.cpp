@@ -1,0 +1,195 @@
+#include <vkjr2/kernels/check.hpp>
+#include <vkjr2/kernels/elementwise.hpp>
+#include <vkjr2/kernels/reduce.hpp>
+
+#include <string>
+
+namespace vkjr2::kernels {
+namespace {
+
+constexpr std::uint32_t kPerGroup = 1024;  // 256 invocations × 4 elements
+
+struct UnaryPush {
+  std::uint32_t n;
+  float p0, p1;
+  std::uint32_t hw, channels;
+};
+struct BinaryPush {
+  std::uint32_t n, hw, channels;
+};
+static_assert(sizeof(UnaryPush) <= 128 && sizeof(BinaryPush) <= 128);
+
+enum class BinaryOp : std::uint32_t { add = 0, sub = 1, mul = 2 };
+
+void binary(Stream& stream, const char* op_name, BinaryOp op, const Tensor& a, const Tensor& b,
+            const Tensor& out) {
+  static const KernelDef k{"ew_binary",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                           sizeof(BinaryPush)};
+  const std::uint32_t n = require_f32(a, op_name, "a");
+  require_f32(b, op_name, "b");
+  require_f32(out, op_name, "out");
+  require_same_shape(a, b, op_name, "a", "b");
+  require_same_shape(a, out, op_name, "a", "out");
+  stream.dispatch(k, {texel(a), texel(b), vkjr2::out(out)}, BinaryPush{n, 1, 1},
+                  groups_1d(div_up(n, kPerGroup), stream.device().info()), {std::uint32_t(op), 0u});
+}
+
+void binary_channel(Stream& stream, const char* op_name, BinaryOp op, const Tensor& x,
+                    const Tensor& v, const Tensor& out) {
+  static const KernelDef k{"ew_binary",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                           sizeof(BinaryPush)};
+  const std::uint32_t n = require_f32(x, op_name, "x");
+  require_f32(out, op_name, "out");
+  require_same_shape(x, out, op_name, "x", "out");
+  const detail::ChannelGeometry g = detail::channel_geometry(x);
+  require_f32(v, op_name, "v");
+  require_shape(v, Shape{std::int64_t(g.channels)}, op_name, "v (one value per channel)");
+  stream.dispatch(k, {texel(x), texel(v), vkjr2::out(out)}, BinaryPush{n, g.hw, g.channels},
+                  groups_1d(div_up(n, kPerGroup), stream.device().info()), {std::uint32_t(op), 1u});
+}
+
+}  // namespace
+
+namespace detail {
+
+ChannelGeometry channel_geometry(const Tensor& x) {
+  const Shape& s = x.shape();
+  ChannelGeometry g;
+  if (s.rank() == 1) {
+    g.channels = std::uint32_t(s[0]);
+    return g;
+  }
+  g.batch = std::uint32_t(s[0]);
+  g.channels = std::uint32_t(s[1]);
+  for (int i = 2; i < s.rank(); ++i) g.hw *= std::uint32_t(s[i]);
+  return g;
+}
+
+void unary(Stream& stream, const char* op_name, UnaryOp op, const Tensor& a, const Tensor* dy,
+           const Tensor* slope, const Tensor& out, float p0, float p1) {
+  static const KernelDef k{
+      "ew_unary",
+      {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
+      sizeof(UnaryPush)};
+  const bool backward = dy != nullptr;
+  const std::uint32_t n = require_f32(a, op_name, backward ? "saved tensor" : "x");
+  require_f32(out, op_name, backward ? "dx" : "y");
+  require_same_shape(a, out, op_name, backward ? "saved tensor" : "x", backward ? "dx" : "y");
+  if (backward) {
+    require_f32(*dy, op_name, "dy");
+    require_same_shape(a, *dy, op_name, "saved tensor", "dy");
+  }
+  ChannelGeometry g;
+  if (op == UnaryOp::prelu) {
+    g = channel_geometry(a);
+    require_f32(*slope, op_name, "slope");
+    require_shape(*slope, Shape{std::int64_t(g.channels)}, op_name,
+                  "slope (one value per channel)");
+  }
+  // Unused bindings are bound to `a` (never read).
+  const Tensor& b = backward ? *dy : a;
+  const Tensor& sl = op == UnaryOp::prelu ? *slope : a;
+  stream.dispatch(k, {texel(a), texel(b), texel(sl), vkjr2::out(out)},
+                  UnaryPush{n, p0, p1, g.hw, g.channels},
+                  groups_1d(div_up(n, kPerGroup), stream.device().info()),
+                  {std::uint32_t(op), backward ? 1u : 0u});
+}
+
+}  // namespace detail
+
+void add(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& out) {
+  binary(stream, "add", BinaryOp::add, a, b, out);
+}
+void sub(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& out) {
+  binary(stream, "sub", BinaryOp::sub, a, b, out);
+}
+void mul(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& out) {
+  binary(stream, "mul", BinaryOp::mul, a, b, out);
+}
+
+void add_backward(Stream& stream, const Tensor& dy, const Tensor* da, const Tensor* db) {
+  require_f32(dy, "add_backward", "dy");
+  for (const Tensor* d : {da, db}) {
+    if (d == nullptr) continue;
+    require_f32(*d, "add_backward", "gradient");
+    require_same_shape(dy, *d, "add_backward", "dy", "gradient");
+    stream.copy(dy, *d);
+  }
+}
+
+void sub_backward(Stream& stream, const Tensor& dy, const Tensor* da, const Tensor* db) {
+  require_f32(dy, "sub_backward", "dy");
+  if (da != nullptr) {
+    require_f32(*da, "sub_backward", "da");
+    require_same_shape(dy, *da, "sub_backward", "dy", "da");
+    stream.copy(dy, *da);
+  }
+  if (db != nullptr) {
+    detail::unary(stream, "sub_backward", detail::UnaryOp::scale_shift, dy, nullptr, nullptr, *db,
+                  -1.f, 0.f);
+  }
+}
+
+void mul_backward(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& dy,
+                  const Tensor* da, const Tensor* db) {
+  require_f32(a, "mul_backward", "a");
+  require_same_shape(a, b, "mul_backward", "a", "b");
+  if (da != nullptr) binary(stream, "mul_backward", BinaryOp::mul, dy, b, *da);
+  if (db != nullptr) binary(stream, "mul_backward", BinaryOp::mul, dy, a, *db);
+}
+
+void add_channel(Stream& stream, const Tensor& x, const Tensor& v, const Tensor& out) {
+  binary_channel(stream, "add_channel", BinaryOp::add, x, v, out);
+}
+void mul_channel(Stream& stream, const Tensor& x, const Tensor& v, const Tensor& out) {
+  binary_channel(stream, "mul_channel", BinaryOp::mul, x, v, out);
+}
+
+void add_channel_backward(Stream& stream, const Tensor& dy, const Tensor& dv) {
+  require_f32(dy, "add_channel_backward", "dy");
+  const detail::ChannelGeometry g = detail::channel_geometry(dy);
+  require_f32(dv, "add_channel_backward", "dv");
+  require_shape(dv, Shape{std::int64_t(g.channels)}, "add_channel_backward", "dv");
+  detail::reduce_channels(stream, dy, nullptr, 0, g.batch, g.channels, g.hw, dv);
+}
+
+void mul_channel_backward(Stream& stream, const Tensor& x, const Tensor& v, const Tensor& dy,
+                          const Tensor* dx, const Tensor* dv) {
+  require_f32(x, "mul_channel_backward", "x");
+  require_f32(dy, "mul_channel_backward", "dy");
+  require_same_shape(x, dy, "mul_channel_backward", "x", "dy");
+  if (dx != nullptr) binary_channel(stream, "mul_channel_backward", BinaryOp::mul, dy, v, *dx);
+  if (dv != nullptr) {
+    const detail::ChannelGeometry g = detail::channel_geometry(x);
+    require_f32(*dv, "mul_channel_backward", "dv");
+    require_shape(*dv, Shape{std::int64_t(g.channels)}, "mul_channel_backward", "dv");
+    detail::reduce_channels(stream, dy, &x, 1, g.batch, g.channels, g.hw, *dv);
+  }
+}
+
+void scale_shift(Stream& stream, const Tensor& x, float scale, float shift, const Tensor& y) {
+  detail::unary(stream, "scale_shift", detail::UnaryOp::scale_shift, x, nullptr, nullptr, y, scale,
+                shift);
+}
+void scale_shift_backward(Stream& stream, const Tensor& dy, float scale, const Tensor& dx) {
+  // dx = scale·dy + 0: the forward op applied to dy.
+  detail::unary(stream, "scale_shift_backward", detail::UnaryOp::scale_shift, dy, nullptr, nullptr,
+                dx, scale, 0.f);
+}
+
+void exponential(Stream& stream, const Tensor& x, const Tensor& y) {
+  detail::unary(stream, "exponential", detail::UnaryOp::exp, x, nullptr, nullptr, y);
+}
+void exponential_backward(Stream& stream, const Tensor& y, const Tensor& dy, const Tensor& dx) {
+  detail::unary(stream, "exponential_backward", detail::UnaryOp::exp, y, &dy, nullptr, dx);
+}
+void logarithm(Stream& stream, const Tensor& x, const Tensor& y) {
+  detail::unary(stream, "logarithm", detail::UnaryOp::log, x, nullptr, nullptr, y);
+}
+void logarithm_backward(Stream& stream, const Tensor& x, const Tensor& dy, const Tensor& dx) {
+  detail::unary(stream, "logarithm_backward", detail::UnaryOp::log, x, &dy, nullptr, dx);
+}
+
+}  // namespace vkjr2::kernels

@@ -1,0 +1,93 @@
+#include <vkjr2/kernels/check.hpp>
+#include <vkjr2/kernels/resize.hpp>
+
+#include <string>
+
+namespace vkjr2::kernels {
+namespace {
+
+// Multiply-high constants for n / d in shaders (fast_div, see
+// shaders/slice.comp): m = ceil(2^(31 + l) / d), l = ceil(log2 d); exact for
+// n < 2^31 (Granlund & Montgomery 1994). Integer division is scalarized and
+// slow on llvmpipe.
+struct Magic {
+  std::uint32_t m = 0, l = 0;
+};
+Magic magic(std::uint64_t d) {
+  std::uint32_t l = 0;
+  while ((std::uint64_t(1) << l) < d) ++l;
+  return {static_cast<std::uint32_t>(((std::uint64_t(1) << (31 + l)) + d - 1) / d), l};
+}
+
+// Mirrors the push block of shaders/resize.comp.
+struct ResizePush {
+  std::uint32_t planes;
+  std::int32_t in_h, in_w, out_h, out_w;
+  std::uint32_t mode;
+  float scale_h, scale_w;
+  Magic blocks_magic, rows_magic;  // blocks per row, rows per plane of the written tensor
+};
+static_assert(sizeof(ResizePush) <= 128);
+
+float axis_scale(ResizeMode mode, std::int64_t in, std::int64_t out) {
+  if (mode == ResizeMode::bilinear_align_corners) {
+    return out > 1 ? static_cast<float>(in - 1) / static_cast<float>(out - 1) : 0.f;
+  }
+  return static_cast<float>(in) / static_cast<float>(out);
+}
+
+void dispatch_resize(Stream& stream, const Tensor& src, const Tensor& dst, const Shape& in,
+                     const Shape& out, ResizeMode mode, bool backward) {
+  static const KernelDef k{
+      "resize", {BindingKind::texel, BindingKind::storage}, sizeof(ResizePush)};
+  if (static_cast<std::uint32_t>(mode) > 3) {
+    throw InvalidArgument(backward ? "resize_backward" : "resize",
+                          "unknown mode " + std::to_string(static_cast<std::uint32_t>(mode)));
+  }
+  // One invocation per 4 consecutive pixels of one row of the written tensor.
+  const Shape& w = backward ? in : out;
+  const ResizePush push{static_cast<std::uint32_t>(in[0] * in[1]),
+                        static_cast<std::int32_t>(in[2]),
+                        static_cast<std::int32_t>(in[3]),
+                        static_cast<std::int32_t>(out[2]),
+                        static_cast<std::int32_t>(out[3]),
+                        static_cast<std::uint32_t>(mode),
+                        axis_scale(mode, in[2], out[2]),
+                        axis_scale(mode, in[3], out[3]),
+                        magic(div_up(w[3], 4)),
+                        magic(static_cast<std::uint64_t>(w[2]))};
+  const std::uint64_t items = std::uint64_t(w[0] * w[1] * w[2]) * div_up(w[3], 4);
+  stream.dispatch(k, {texel(src), vkjr2::out(dst)}, push,
+                  groups_1d(div_up(items, 256), stream.device().info()), {backward ? 1u : 0u});
+}
+
+void require_batch_match(const Tensor& a, const Tensor& b, const char* op, const char* a_name,
+                         const char* b_name) {
+  if (a.shape()[0] != b.shape()[0] || a.shape()[1] != b.shape()[1]) {
+    throw InvalidArgument(op, std::string(a_name) + " " + a.shape().str() + " and " + b_name + " " +
+                                  b.shape().str() + " differ in N or C");
+  }
+  if (a.numel() > INT32_MAX || b.numel() > INT32_MAX) {
+    throw InvalidArgument(op, "tensors over 2^31 elements are not supported", "split the batch");
+  }
+}
+
+}  // namespace
+
+void resize(Stream& stream, const Tensor& x, ResizeMode mode, const Tensor& y) {
+  const char* op = "resize";
+  require_f32_rank(x, 4, op, "x");
+  require_f32_rank(y, 4, op, "y");
+  require_batch_match(x, y, op, "x", "y");
+  dispatch_resize(stream, x, y, x.shape(), y.shape(), mode, false);
+}
+
+void resize_backward(Stream& stream, const Tensor& dy, ResizeMode mode, const Tensor& dx) {
+  const char* op = "resize_backward";
+  require_f32_rank(dy, 4, op, "dy");
+  require_f32_rank(dx, 4, op, "dx");
+  require_batch_match(dx, dy, op, "dx", "dy");
+  dispatch_resize(stream, dy, dx, dx.shape(), dy.shape(), mode, true);
+}
+
+}  // namespace vkjr2::kernels

@@ -1,0 +1,35 @@
+// Resizing NCHW images: bilinear in the half-pixel, legacy-TF and
+// align-corners conventions, and nearest; forward and backward.
+#pragma once
+
+#include <vkjr2/runtime/stream.hpp>
+
+#include <cstdint>
+
+namespace vkjr2::kernels {
+
+// Source coordinate of output pixel d on an axis of `in` input and `out`
+// output pixels (computed in fp32, as PyTorch does):
+enum class ResizeMode : std::uint32_t {
+  // src = (d + 0.5)·in/out − 0.5, clamped to [0, in − 1]: PyTorch
+  // align_corners=False, TF half_pixel_centers=True, OpenCV INTER_LINEAR.
+  bilinear_half_pixel = 0,
+  // src = d·in/out: TF resize_bilinear with align_corners=False,
+  // half_pixel_centers=False (legacy TF 1.x, face-api).
+  bilinear_legacy = 1,
+  // src = d·(in − 1)/(out − 1) (0 when out = 1): align_corners=True.
+  bilinear_align_corners = 2,
+  // src = min(floor(d·in/out), in − 1): PyTorch "nearest", TF legacy nearest.
+  nearest = 3,
+};
+
+// y[n, c, :, :] = x[n, c, :, :] resampled to y's H×W. x: [N, C, H, W],
+// y: [N, C, OH, OW] (any positive OH, OW). Bilinear taps beyond the last
+// pixel clamp to it.
+void resize(Stream& stream, const Tensor& x, ResizeMode mode, const Tensor& y);
+// dx = the adjoint of resize applied to dy, written as a gather over the
+// output pixels each input pixel contributes to (deterministic, dx fully
+// overwritten). dy: [N, C, OH, OW], dx: [N, C, H, W].
+void resize_backward(Stream& stream, const Tensor& dy, ResizeMode mode, const Tensor& dx);
+
+}  // namespace vkjr2::kernels

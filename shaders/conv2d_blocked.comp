@@ -1,0 +1,81 @@
+#version 450
+// conv2d forward, groups == 1: each invocation computes 8 output channels × 8
+// consecutive output pixels of one row (16 vec4 accumulators). The input is
+// the zero-padded copy from conv2d_pad (no bounds checks in the loop); one row
+// segment is loaded once per (channel, ky) as vec4 texels and reused across
+// kx. Weights are packed by conv2d_pack: 8 channels per tap as two vec4
+// texels. See LAVAPIPE.md: texel-buffer reads, no shared memory, several
+// outputs per invocation. Measured on lavapipe (3×3 64→64 128²): scalar input
+// reads 3.5–4 GFLOP/s, vec4 input reads 12–17; weights through a 64 KiB UBO
+// (chunked dispatches) were slower than through this texel buffer.
+#include "common.glsl"
+#include "conv2d_common.glsl"
+layout(local_size_x = 64) in;
+layout(constant_id = 0) const uint KH = 3u;
+layout(constant_id = 1) const uint KW = 3u;
+layout(constant_id = 2) const uint SX = 1u;
+layout(constant_id = 3) const uint DX = 1u;
+const uint PX = 8u;
+const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;  // input columns one row needs
+const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
+
+layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp], zero-padded
+layout(binding = 1) uniform samplerBuffer packed;  // RGBA32F: [cout/8][cin][kh][kw][2]
+layout(binding = 2) uniform samplerBuffer bias;
+layout(std430, binding = 3) writeonly buffer Y { float y[]; };
+
+void main() {
+  const uint pb = gl_GlobalInvocationID.x;
+  if (pb >= pc.hout * pc.wblocks) return;
+  const uint cob = gl_WorkGroupID.y;
+  const uint n = gl_WorkGroupID.z;
+  const uint oy = pb / pc.wblocks;
+  const uint ox0 = (pb % pc.wblocks) * PX;
+
+  vec4 a0[PX], a1[PX];
+  [[unroll]] for (uint p = 0u; p < PX; ++p) {
+    a0[p] = vec4(0.0);
+    a1[p] = vec4(0.0);
+  }
+  const int plane = int(pc.hp * pc.wp / 4u);
+  const int row_step = int(pc.dy * pc.wp / 4u);
+  int xbase = int((((n * pc.cin) * pc.hp + oy * pc.sy) * pc.wp + ox0 * SX) / 4u);
+  int wbase = int(cob * pc.cin * KH * KW * 2u);
+  for (uint c = 0u; c < pc.cin; ++c) {
+    [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+      const int rb = xbase + int(ky) * row_step;
+      vec4 r[SEG4];
+      [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = texelFetch(xp, rb + int(j));
+      [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
+        const int wi = wbase + int((ky * KW + kx) * 2u);
+        const vec4 w0 = texelFetch(packed, wi);
+        const vec4 w1 = texelFetch(packed, wi + 1);
+        [[unroll]] for (uint p = 0u; p < PX; ++p) {
+          const float v = r[(p * SX + kx * DX) / 4u][(p * SX + kx * DX) % 4u];
+          a0[p] = fma(vec4(v), w0, a0[p]);
+          a1[p] = fma(vec4(v), w1, a1[p]);
+        }
+      }
+    }
+    xbase += plane;
+    wbase += int(KH * KW * 2u);
+  }
+
+  float b[8];
+  [[unroll]] for (uint j = 0u; j < 8u; ++j) {
+    const uint co = cob * 8u + j;
+    b[j] = (pc.has_bias != 0u && co < pc.cout) ? texelFetch(bias, int(co)).r : 0.0;
+  }
+  const uint hw = pc.hout * pc.wout;
+  const uint obase = (n * pc.cout + cob * 8u) * hw + oy * pc.wout + ox0;
+  [[unroll]] for (uint p = 0u; p < PX; ++p) {
+    if (ox0 + p < pc.wout) {
+      [[unroll]] for (uint j = 0u; j < 4u; ++j) {
+        if (cob * 8u + j < pc.cout) y[obase + j * hw + p] = conv_act(a0[p][j] + b[j]);
+        if (cob * 8u + 4u + j < pc.cout) {
+          y[obase + (4u + j) * hw + p] = conv_act(a1[p][j] + b[4u + j]);
+        }
+      }
+    }
+  }
+}

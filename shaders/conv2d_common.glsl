@@ -1,0 +1,27 @@
+// Shared by the conv2d*.comp shaders: the push constants (mirror of
+// ConvPush in kernels/conv2d.cpp) and the fused activation.
+#ifndef VKJR2_CONV2D_COMMON_GLSL
+#define VKJR2_CONV2D_COMMON_GLSL
+
+layout(push_constant) uniform Push {
+  uint n, cin, h, w;          // input [n, cin, h, w]
+  uint cout, hout, wout, kh;  // output [n, cout, hout, wout]; kernel kh × kw
+  uint kw, sy, sx, dy;        // stride (sy, sx), dilation (dy, dx)
+  uint dx;
+  int pt, pl;                 // padding top, left
+  uint groups;
+  uint act;                   // 0 none, 1 ReLU, 2 LeakyReLU
+  float slope;                // LeakyReLU slope
+  uint has_bias;
+  uint hp, wp;                // zero-padded input planes (blocked, depthwise)
+  uint wblocks;               // output pixel blocks per row (blocked, depthwise)
+  uint cin_g, cout_g;         // channels per group
+} pc;
+
+float conv_act(float v) {
+  if (pc.act == 1u) return max(v, 0.0);
+  if (pc.act == 2u) return v < 0.0 ? v * pc.slope : v;
+  return v;
+}
+
+#endif

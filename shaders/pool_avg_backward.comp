@@ -1,0 +1,61 @@
+#version 450
+// Average pool backward as a gather: each input pixel sums dy / divisor over
+// the windows that cover it. Deterministic. 4 pixels of one row per invocation.
+#include "common.glsl"
+layout(local_size_x = 256) in;
+layout(binding = 0) uniform samplerBuffer dy;
+layout(std430, binding = 1) writeonly buffer DX { float dx[]; };
+layout(push_constant) uniform Push {
+  uint planes; int h; int w; int oh; int ow;
+  int kh; int kw; int sh; int sw; int pad_top; int pad_left; int pad_bottom; int pad_right;
+  uint flag;
+  uvec2 blocks_magic; uvec2 rows_magic;  // divisors: blocks per row, rows per plane (written)
+} pc;
+
+// n / d for n < 2^31 by multiply-high (Granlund & Montgomery 1994):
+// magic.x = ceil(2^(31 + l) / d), magic.y = l = ceil(log2 d); integer
+// division is scalarized and slow on llvmpipe.
+uint fast_div(uint n, uvec2 magic) {
+  if (magic.y == 0u) return n;
+  uint hi, lo;
+  umulExtended(n, magic.x, hi, lo);
+  return hi >> (magic.y - 1u);
+}
+
+int first_window(int p, int pad, int k, int s) {
+  const int a = p + pad - k + 1;
+  return a <= 0 ? 0 : (a + s - 1) / s;
+}
+
+// Divisor of the window starting at s0 on an axis of n pixels (see pool_avg).
+int extent(int s0, int k, int n, int pad_after) {
+  return pc.flag != 0u ? min(s0 + k, n + pad_after) - s0 : min(s0 + k, n) - max(s0, 0);
+}
+
+void main() {
+  const uint blocks_x = (uint(pc.w) + 3u) / 4u;
+  const uint item = linear_group() * 256u + gl_LocalInvocationID.x;
+  if (item >= pc.planes * uint(pc.h) * blocks_x) return;
+  const uint row = fast_div(item, pc.blocks_magic);  // plane * H + y
+  const int x0 = int(item - row * blocks_x) * 4;
+  const uint plane = fast_div(row, pc.rows_magic);
+  const int iy = int(row - plane * uint(pc.h));
+  const int out_base = int(plane) * pc.oh * pc.ow;
+  const int oy0 = first_window(iy, pc.pad_top, pc.kh, pc.sh);
+  const int oy1 = min(pc.oh - 1, (iy + pc.pad_top) / pc.sh);
+  [[unroll]] for (int k = 0; k < 4; ++k) {
+    const int ix = x0 + k;
+    if (ix >= pc.w) break;
+    const int ox0 = first_window(ix, pc.pad_left, pc.kw, pc.sw);
+    const int ox1 = min(pc.ow - 1, (ix + pc.pad_left) / pc.sw);
+    float acc = 0.0;
+    for (int oy = oy0; oy <= oy1; ++oy) {
+      const int rows = extent(oy * pc.sh - pc.pad_top, pc.kh, pc.h, pc.pad_bottom);
+      for (int ox = ox0; ox <= ox1; ++ox) {
+        const int cols = extent(ox * pc.sw - pc.pad_left, pc.kw, pc.w, pc.pad_right);
+        acc += texelFetch(dy, out_base + oy * pc.ow + ox).r / float(rows * cols);
+      }
+    }
+    dx[row * uint(pc.w) + uint(ix)] = acc;
+  }
+}

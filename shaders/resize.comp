@@ -1,0 +1,142 @@
+#version 450
+// Bilinear / nearest resize of NCHW images (modes: see kernels/resize.hpp)
+// and its adjoint. BACKWARD = 0: each invocation computes 4 consecutive
+// output pixels of one row. BACKWARD = 1: each invocation computes 4
+// consecutive input-pixel gradients, gathering over the output pixels whose
+// taps touch them (the same tap function as the forward, so the two agree
+// exactly; no atomics, deterministic).
+#include "common.glsl"
+layout(local_size_x = 256) in;
+layout(constant_id = 0) const uint BACKWARD = 0u;
+layout(binding = 0) uniform samplerBuffer src;  // x (forward) or dy (backward)
+layout(std430, binding = 1) writeonly buffer Dst { float dst[]; };  // y or dx
+layout(push_constant) uniform Push {
+  uint planes; int in_h; int in_w; int out_h; int out_w; uint mode; float scale_h; float scale_w;
+  uvec2 blocks_magic; uvec2 rows_magic;  // divisors: blocks per row, rows per plane (written)
+} pc;
+
+// n / d for n < 2^31 by multiply-high (Granlund & Montgomery 1994):
+// magic.x = ceil(2^(31 + l) / d), magic.y = l = ceil(log2 d); integer
+// division is scalarized and slow on llvmpipe.
+uint fast_div(uint n, uvec2 magic) {
+  if (magic.y == 0u) return n;
+  uint hi, lo;
+  umulExtended(n, magic.x, hi, lo);
+  return hi >> (magic.y - 1u);
+}
+
+// Taps of output coordinate d on one axis: value = (1 - l)·in[i0] + l·in[i1].
+void taps(int d, int n_in, float scale, out int i0, out int i1, out float l) {
+  precise float s;
+  if (pc.mode == 0u) {
+    s = (float(d) + 0.5) * scale - 0.5;
+  } else {
+    s = float(d) * scale;
+  }
+  s = clamp(s, 0.0, float(n_in - 1));
+  i0 = min(int(s), n_in - 1);
+  if (pc.mode == 3u) {
+    i1 = i0;
+    l = 0.0;
+  } else {
+    i1 = min(i0 + 1, n_in - 1);
+    l = s - float(i0);
+  }
+}
+
+// First output coordinate whose taps reach input i or beyond: start from the
+// inverse mapping, then correct it with the exact tap function.
+int first_output(int i, int n_in, int n_out, float scale) {
+  int d = 0;
+  if (scale > 0.0) {
+    const float t = pc.mode == 0u ? (float(i) - 0.5) / scale - 0.5 : float(i - 1) / scale;
+    d = clamp(int(floor(t)), 0, n_out - 1);
+  }
+  int i0, i1;
+  float l;
+  for (;;) {  // step back while the previous output still reaches i
+    if (d == 0) break;
+    taps(d - 1, n_in, scale, i0, i1, l);
+    if (i1 < i) break;
+    --d;
+  }
+  for (;;) {  // step forward while this output stays below i
+    if (d >= n_out) break;
+    taps(d, n_in, scale, i0, i1, l);
+    if (i1 >= i) break;
+    ++d;
+  }
+  return d;
+}
+
+void forward_pass(uint item) {
+  const uint blocks_x = (uint(pc.out_w) + 3u) / 4u;
+  if (item >= pc.planes * uint(pc.out_h) * blocks_x) return;
+  const uint row = fast_div(item, pc.blocks_magic);  // plane * out_h + oy
+  const int ox0 = int(item - row * blocks_x) * 4;
+  const uint plane = fast_div(row, pc.rows_magic);
+  const int oy = int(row - plane * uint(pc.out_h));
+  const int base = int(plane) * pc.in_h * pc.in_w;
+  int y0, y1;
+  float ly;
+  taps(oy, pc.in_h, pc.scale_h, y0, y1, ly);
+  const int r0 = base + y0 * pc.in_w, r1 = base + y1 * pc.in_w;
+  [[unroll]] for (int k = 0; k < 4; ++k) {
+    const int ox = ox0 + k;
+    if (ox >= pc.out_w) break;
+    int x0, x1;
+    float lx;
+    taps(ox, pc.in_w, pc.scale_w, x0, x1, lx);
+    if (pc.mode == 3u) {  // nearest: one tap
+      dst[row * uint(pc.out_w) + uint(ox)] = texelFetch(src, r0 + x0).r;
+      continue;
+    }
+    const float top = (1.0 - lx) * texelFetch(src, r0 + x0).r + lx * texelFetch(src, r0 + x1).r;
+    const float bot = (1.0 - lx) * texelFetch(src, r1 + x0).r + lx * texelFetch(src, r1 + x1).r;
+    dst[row * uint(pc.out_w) + uint(ox)] = (1.0 - ly) * top + ly * bot;
+  }
+}
+
+void backward_pass(uint item) {
+  const uint blocks_x = (uint(pc.in_w) + 3u) / 4u;
+  if (item >= pc.planes * uint(pc.in_h) * blocks_x) return;
+  const uint row = fast_div(item, pc.blocks_magic);  // plane * in_h + iy
+  const int ix0 = int(item - row * blocks_x) * 4;
+  const uint plane = fast_div(row, pc.rows_magic);
+  const int iy = int(row - plane * uint(pc.in_h));
+  const int base = int(plane) * pc.out_h * pc.out_w;
+  const int oy_first = first_output(iy, pc.in_h, pc.out_h, pc.scale_h);
+  [[unroll]] for (int k = 0; k < 4; ++k) {
+    const int ix = ix0 + k;
+    if (ix >= pc.in_w) break;
+    const int ox_first = first_output(ix, pc.in_w, pc.out_w, pc.scale_w);
+    float acc = 0.0;
+    for (int oy = oy_first; oy < pc.out_h; ++oy) {
+      int a0, a1;
+      float al;
+      taps(oy, pc.in_h, pc.scale_h, a0, a1, al);
+      if (a0 > iy) break;
+      const float wy = (a0 == iy ? 1.0 - al : 0.0) + (a1 == iy ? al : 0.0);
+      float acc_row = 0.0;
+      for (int ox = ox_first; ox < pc.out_w; ++ox) {
+        int b0, b1;
+        float bl;
+        taps(ox, pc.in_w, pc.scale_w, b0, b1, bl);
+        if (b0 > ix) break;
+        const float wx = (b0 == ix ? 1.0 - bl : 0.0) + (b1 == ix ? bl : 0.0);
+        acc_row += wx * texelFetch(src, base + oy * pc.out_w + ox).r;
+      }
+      acc += wy * acc_row;
+    }
+    dst[row * uint(pc.in_w) + uint(ix)] = acc;
+  }
+}
+
+void main() {
+  const uint item = linear_group() * 256u + gl_LocalInvocationID.x;
+  if (BACKWARD != 0u) {
+    backward_pass(item);
+  } else {
+    forward_pass(item);
+  }
+}

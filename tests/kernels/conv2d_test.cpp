@@ -1,0 +1,432 @@
+#include <vkjr2/kernels/conv2d.hpp>
+#include <vkjr2/kernels/ref/conv2d_ref.hpp>
+
+#include <gtest/gtest.h>
+#include <sys/resource.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <functional>
+#include <random>
+#include <sstream>
+#include <string>
+
+#include "support/gradcheck.hpp"
+#include "support/test_device.hpp"
+
+namespace vkjr2 {
+namespace {
+
+using kernels::Activation;
+using kernels::Conv2dAlgo;
+using kernels::Conv2dParams;
+
+struct Case {
+  ref::Conv2dDims d;
+  Conv2dParams p;
+};
+
+std::string describe(const Case& c) {
+  std::ostringstream s;
+  s << "x [" << c.d.n << "," << c.d.cin << "," << c.d.h << "," << c.d.w << "] w [" << c.d.cout
+    << "," << c.d.cin / c.p.groups << "," << c.d.kh << "," << c.d.kw << "] stride (" << c.p.stride_y
+    << "," << c.p.stride_x << ") dil (" << c.p.dilation_y << "," << c.p.dilation_x << ") pad (t"
+    << c.p.pad.top << " b" << c.p.pad.bottom << " l" << c.p.pad.left << " r" << c.p.pad.right
+    << ") groups " << c.p.groups << " act " << int(c.p.activation);
+  return s.str();
+}
+
+Shape x_shape(const ref::Conv2dDims& d) { return {d.n, d.cin, d.h, d.w}; }
+Shape w_shape(const ref::Conv2dDims& d, int groups) { return {d.cout, d.cin / groups, d.kh, d.kw}; }
+Shape y_shape(const Case& c) {
+  return {c.d.n, c.d.cout, ref::conv2d_out_h(c.d, c.p), ref::conv2d_out_w(c.d, c.p)};
+}
+
+bool valid(const Case& c) {
+  const std::int64_t hout = ref::conv2d_out_h(c.d, c.p), wout = ref::conv2d_out_w(c.d, c.p);
+  return c.d.h + c.p.pad.top + c.p.pad.bottom >= (c.d.kh - 1) * c.p.dilation_y + 1 &&
+         c.d.w + c.p.pad.left + c.p.pad.right >= (c.d.kw - 1) * c.p.dilation_x + 1 && hout >= 1 &&
+         wout >= 1;
+}
+
+// Random convolutions over the shapes real networks use, sized so the
+// reference stays fast: channels 1..64 (incl. not multiples of 8), odd and even
+// sizes incl. 1×1, kernels 1/3/5/7, stride 1/2, dilation 1/2, asymmetric
+// padding, dense/grouped/depthwise, every activation.
+std::vector<Case> random_cases(std::uint32_t seed, int count) {
+  std::mt19937 rng(seed);
+  auto pick = [&](std::initializer_list<int> v) {
+    return *(v.begin() + std::uniform_int_distribution<int>(0, int(v.size()) - 1)(rng));
+  };
+  auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+  std::vector<Case> cases;
+  while (int(cases.size()) < count) {
+    Case c;
+    c.d.n = pick({1, 2});
+    c.d.cin = pick({1, 3, 8, 16, 32, 64});
+    c.d.cout = pick({1, 3, 8, 13, 16, 32, 64});
+    c.d.h = pick({1, 2, 5, 8, 11, 16, 19});
+    c.d.w = pick({1, 3, 6, 9, 16, 17, 23});
+    c.d.kh = pick({1, 3, 5, 7});
+    c.d.kw = uni(0, 3) == 0 ? pick({1, 3, 5, 7}) : c.d.kh;
+    c.p.stride_y = pick({1, 2});
+    c.p.stride_x = uni(0, 3) == 0 ? pick({1, 2}) : c.p.stride_y;
+    c.p.dilation_y = pick({1, 1, 2});
+    c.p.dilation_x = pick({1, 1, 2});
+    c.p.pad = {uni(0, 3), uni(0, 3), uni(0, 3), uni(0, 3)};
+    const int g = uni(0, 3);
+    if (g == 1) {  // depthwise, sometimes with a channel multiplier
+      c.p.groups = int(c.d.cin);
+      c.d.cout = c.d.cin * pick({1, 1, 2});
+    } else if (g == 2 && c.d.cin % 2 == 0 && c.d.cout % 2 == 0) {
+      c.p.groups = 2;
+    }
+    c.p.activation = Activation(uni(0, 2));
+    c.p.leaky_slope = 0.1f;
+    if (!valid(c)) continue;
+    const std::int64_t macs = c.d.n * c.d.cout * ref::conv2d_out_h(c.d, c.p) *
+                              ref::conv2d_out_w(c.d, c.p) * (c.d.cin / c.p.groups) * c.d.kh *
+                              c.d.kw;
+    if (macs > 4'000'000) continue;
+    cases.push_back(c);
+  }
+  return cases;
+}
+
+// Hand-picked edges: pointwise with h·w not a multiple of 8, 1×1 images, TF
+// "same" stride 2 on even sizes, Cout not a multiple of the 8-channel block.
+std::vector<Case> edge_cases() {
+  std::vector<Case> cases;
+  Case c;
+  c.d = {1, 16, 5, 7, 13, 1, 1};
+  cases.push_back(c);
+  c.d = {2, 3, 1, 1, 8, 1, 1};
+  cases.push_back(c);
+  c.d = {2, 5, 3, 4, 9, 1, 1};  // h·w = 12: vec4 reads, a last block of 4 pixels
+  cases.push_back(c);
+  c.d = {1, 8, 1, 1, 16, 3, 3};
+  c.p.pad = {1, 1, 1, 1};
+  cases.push_back(c);
+  c.d = {2, 16, 12, 10, 24, 3, 3};
+  c.p.stride_y = c.p.stride_x = 2;
+  c.p.pad = kernels::same_padding(12, 10, 3, 3, 2, 2);
+  c.p.activation = Activation::leaky_relu;
+  cases.push_back(c);
+  c.d = {1, 32, 9, 9, 32, 3, 3};
+  c.p = {};
+  c.p.groups = 32;
+  c.p.pad = kernels::same_padding(9, 9, 3, 3, 1, 1);
+  c.p.activation = Activation::relu;
+  cases.push_back(c);
+  return cases;
+}
+
+void expect_close(const std::vector<float>& got, const std::vector<float>& want,
+                  const std::string& what) {
+  ASSERT_EQ(got.size(), want.size()) << what;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    ASSERT_NEAR(got[i], want[i], 1e-4 * (1.0 + std::fabs(want[i])))
+        << what << " at element " << i << " of " << got.size();
+  }
+}
+
+// The variants that can run a case (direct always can).
+std::vector<Conv2dAlgo> runnable(const Device& dev, const Case& c) {
+  std::vector<Conv2dAlgo> algos;
+  for (Conv2dAlgo a :
+       {Conv2dAlgo::direct, Conv2dAlgo::blocked, Conv2dAlgo::pointwise, Conv2dAlgo::depthwise}) {
+    Conv2dParams p = c.p;
+    p.algo = a;
+    try {
+      kernels::conv2d_select(dev.info(), x_shape(c.d), w_shape(c.d, c.p.groups), p);
+      algos.push_back(a);
+    } catch (const InvalidArgument&) {
+    }
+  }
+  return algos;
+}
+
+void check_forward(const Case& c, std::uint32_t seed) {
+  Device& dev = test::device();
+  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+  const Shape ws = w_shape(c.d, c.p.groups);
+  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
+  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
+  const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
+  const auto want = ref::conv2d(xs, wv, bv, c.d, c.p);
+  const auto want_nobias = ref::conv2d(xs, wv, {}, c.d, c.p);
+  Tensor x = Tensor::from(dev, x_shape(c.d), xs);
+  Tensor w = Tensor::from(dev, ws, wv);
+  Tensor b = Tensor::from(dev, {c.d.cout}, bv);
+  EXPECT_EQ(kernels::conv2d_output_shape(x.shape(), w.shape(), c.p), y_shape(c));
+  for (Conv2dAlgo a : runnable(dev, c)) {
+    Conv2dParams p = c.p;
+    p.algo = a;
+    Tensor y = Tensor::empty(dev, y_shape(c));
+    Tensor y2 = Tensor::empty(dev, y_shape(c));
+    Stream s(dev);
+    kernels::conv2d(s, x, w, &b, y, p);
+    kernels::conv2d(s, x, w, nullptr, y2, p);
+    s.run();
+    expect_close(y.download(), want, std::string("forward ") + kernels::conv2d_algo_name(a));
+    expect_close(y2.download(), want_nobias,
+                 std::string("forward without bias ") + kernels::conv2d_algo_name(a));
+  }
+}
+
+void check_backward(const Case& c, std::uint32_t seed) {
+  Device& dev = test::device();
+  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+  const Shape ws = w_shape(c.d, c.p.groups);
+  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
+  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
+  const auto dys = test::random_floats(std::size_t(y_shape(c).numel()), seed + 3);
+  Tensor x = Tensor::from(dev, x_shape(c.d), xs);
+  Tensor w = Tensor::from(dev, ws, wv);
+  Tensor dy = Tensor::from(dev, y_shape(c), dys);
+  Tensor dw = Tensor::empty(dev, ws);
+  Tensor db = Tensor::empty(dev, {c.d.cout});
+  Tensor dx_direct = Tensor::empty(dev, x_shape(c.d));
+  Tensor dx_auto = Tensor::empty(dev, x_shape(c.d));
+  Conv2dParams p = c.p;
+  p.activation = Activation::none;
+  Stream s(dev);
+  kernels::conv2d_backward_weight(s, x, dy, dw, &db, p);
+  kernels::conv2d_backward_data(s, dy, w, dx_auto, p);
+  p.algo = Conv2dAlgo::direct;
+  kernels::conv2d_backward_data(s, dy, w, dx_direct, p);
+  Tensor dw_direct = Tensor::empty(dev, ws);
+  kernels::conv2d_backward_weight(s, x, dy, dw_direct, nullptr, p);
+  s.run();
+  const auto want_dx = ref::conv2d_backward_data(dys, wv, c.d, p);
+  expect_close(dx_auto.download(), want_dx, "backward data (auto)");
+  expect_close(dx_direct.download(), want_dx, "backward data (direct)");
+  const auto want_dw = ref::conv2d_backward_weight(xs, dys, c.d, p);
+  expect_close(dw.download(), want_dw, "backward weight (auto)");
+  expect_close(dw_direct.download(), want_dw, "backward weight (direct)");
+  expect_close(db.download(), ref::conv2d_backward_bias(dys, c.d, p), "backward bias");
+}
+
+TEST(Conv2d, ForwardMatchesReferenceEveryVariant) {
+  const std::uint32_t seed = 2024;
+  int k = 0;
+  for (const Case& c : random_cases(seed, 28)) check_forward(c, seed + 10 * std::uint32_t(k++));
+  for (const Case& c : edge_cases()) check_forward(c, seed + 10 * std::uint32_t(k++));
+}
+
+TEST(Conv2d, BackwardMatchesReference) {
+  const std::uint32_t seed = 77;
+  int k = 0;
+  for (const Case& c : random_cases(seed, 16)) check_backward(c, seed + 10 * std::uint32_t(k++));
+  for (const Case& c : edge_cases()) check_backward(c, seed + 10 * std::uint32_t(k++));
+}
+
+// Central differences of L = Σ g ⊙ conv(x, w, b) against dX, dW, dbias.
+void gradcheck(const Case& c, std::uint32_t seed) {
+  Device& dev = test::device();
+  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+  const Shape ws = w_shape(c.d, c.p.groups);
+  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
+  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
+  const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
+  const auto g = test::random_floats(std::size_t(y_shape(c).numel()), seed + 3);
+  auto loss = [&](std::span<const float> xv, std::span<const float> wvv,
+                  std::span<const float> bvv) {
+    Tensor x = Tensor::from(dev, x_shape(c.d), xv);
+    Tensor w = Tensor::from(dev, ws, wvv);
+    Tensor b = Tensor::from(dev, {c.d.cout}, bvv);
+    Tensor y = Tensor::empty(dev, y_shape(c));
+    Stream s(dev);
+    kernels::conv2d(s, x, w, &b, y, c.p);
+    s.run();
+    return test::weighted_sum(y.download(), g);
+  };
+  Tensor x = Tensor::from(dev, x_shape(c.d), xs);
+  Tensor w = Tensor::from(dev, ws, wv);
+  Tensor dy = Tensor::from(dev, y_shape(c), g);
+  Tensor dx = Tensor::empty(dev, x_shape(c.d));
+  Tensor dw = Tensor::empty(dev, ws);
+  Tensor db = Tensor::empty(dev, {c.d.cout});
+  Stream s(dev);
+  kernels::conv2d_backward_data(s, dy, w, dx, c.p);
+  kernels::conv2d_backward_weight(s, x, dy, dw, &db, c.p);
+  s.run();
+  test::GradCheckOptions o;
+  o.samples = 24;
+  o.seed = seed;
+  test::expect_gradient_matches([&](std::span<const float> v) { return loss(v, wv, bv); }, xs,
+                                dx.download(), "dX", o);
+  test::expect_gradient_matches([&](std::span<const float> v) { return loss(xs, v, bv); }, wv,
+                                dw.download(), "dW", o);
+  test::expect_gradient_matches([&](std::span<const float> v) { return loss(xs, wv, v); }, bv,
+                                db.download(), "dbias", o);
+}
+
+TEST(Conv2d, GradientsMatchFiniteDifferences) {
+  Case dense;
+  dense.d = {2, 3, 6, 7, 5, 3, 3};
+  dense.p.stride_y = 2;
+  dense.p.dilation_x = 2;
+  dense.p.pad = {1, 0, 2, 1};
+  gradcheck(dense, 5);
+  Case same;  // stride 1: backward-data takes the blocked (transposed) path
+  same.d = {1, 4, 5, 6, 3, 3, 3};
+  same.p.pad = {1, 1, 1, 1};
+  gradcheck(same, 6);
+  Case depthwise;
+  depthwise.d = {1, 4, 7, 5, 4, 3, 3};
+  depthwise.p.groups = 4;
+  depthwise.p.pad = {0, 2, 1, 1};
+  gradcheck(depthwise, 7);
+}
+
+TEST(Conv2d, SamePaddingFollowsTensorFlow) {
+  // Stride 2 on even sizes: total 1, all of it after (bottom/right).
+  const kernels::Padding2d p = kernels::same_padding(128, 64, 3, 3, 2, 2);
+  EXPECT_EQ(p.top, 0);
+  EXPECT_EQ(p.bottom, 1);
+  EXPECT_EQ(p.left, 0);
+  EXPECT_EQ(p.right, 1);
+  const kernels::Padding2d q = kernels::same_padding(7, 9, 5, 3, 1, 1);
+  EXPECT_EQ(q.top, 2);
+  EXPECT_EQ(q.bottom, 2);
+  EXPECT_EQ(q.left, 1);
+  EXPECT_EQ(q.right, 1);
+  const kernels::Padding2d r = kernels::same_padding(6, 6, 1, 1, 2, 2);  // 1×1 stride 2: none
+  EXPECT_EQ(r.top + r.bottom + r.left + r.right, 0);
+  Conv2dParams cp;
+  cp.stride_y = cp.stride_x = 2;
+  cp.pad = p;
+  EXPECT_EQ(kernels::conv2d_output_shape({1, 8, 128, 64}, {16, 8, 3, 3}, cp),
+            Shape({1, 16, 64, 32}));
+}
+
+TEST(Conv2d, SelectsTheSpecializedVariants) {
+  const DeviceInfo& info = test::device().info();
+  Conv2dParams p;
+  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 1, 1}, p),
+            Conv2dAlgo::pointwise);
+  p.pad = {1, 1, 1, 1};
+  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::blocked);
+  p.groups = 64;
+  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 1, 3, 3}, p), Conv2dAlgo::depthwise);
+  p.groups = 2;
+  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 32, 3, 3}, p), Conv2dAlgo::direct);
+}
+
+TEST(Conv2d, BadInputsAreClearErrors) {
+  Device& dev = test::device();
+  Stream s(dev);
+  Tensor x = Tensor::empty(dev, {1, 4, 8, 8});
+  Tensor w = Tensor::empty(dev, {8, 4, 3, 3});
+  Tensor y = Tensor::empty(dev, {1, 8, 6, 6});
+  Conv2dParams p;
+  auto expect_message = [](auto&& f, const char* needle) {
+    try {
+      f();
+      ADD_FAILURE() << "no exception; expected one mentioning '" << needle << "'";
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
+    }
+  };
+  Tensor w_bad = Tensor::empty(dev, {8, 3, 3, 3});
+  expect_message([&] { kernels::conv2d(s, x, w_bad, nullptr, y, p); }, "input channels");
+  Tensor y_bad = Tensor::empty(dev, {1, 8, 8, 8});
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y_bad, p); }, "expected");
+  Tensor b_bad = Tensor::empty(dev, {7});
+  expect_message([&] { kernels::conv2d(s, x, w, &b_bad, y, p); }, "bias");
+  Tensor empty = Tensor::empty(dev, {0, 4, 8, 8});
+  expect_message([&] { kernels::conv2d(s, empty, w, nullptr, y, p); }, "empty");
+  Conv2dParams g3 = p;
+  g3.groups = 3;
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, g3); }, "groups");
+  Conv2dParams s0 = p;
+  s0.stride_x = 0;
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, s0); }, "stride");
+  Conv2dParams forced = p;
+  forced.algo = Conv2dAlgo::pointwise;
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, forced); }, "pointwise");
+  Tensor big_w = Tensor::empty(dev, {8, 4, 11, 11});
+  expect_message([&] { kernels::conv2d_output_shape(x.shape(), big_w.shape(), p); }, "exceeds");
+  Tensor dy_bad = Tensor::empty(dev, {1, 8, 5, 6});
+  expect_message([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
+  expect_message([&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");
+}
+
+TEST(Conv2d, NaNPropagates) {
+  Device& dev = test::device();
+  std::vector<float> xs(1 * 8 * 4 * 4, 1.f);
+  xs[5] = NAN;
+  Tensor x = Tensor::from(dev, {1, 8, 4, 4}, xs);
+  Tensor w = Tensor::from(dev, {8, 8, 3, 3}, test::random_floats(8 * 8 * 9, 3));
+  Tensor y = Tensor::empty(dev, {1, 8, 4, 4});
+  Conv2dParams p;
+  p.pad = {1, 1, 1, 1};
+  Stream s(dev);
+  kernels::conv2d(s, x, w, nullptr, y, p);
+  s.run();
+  const auto ys = y.download();
+  EXPECT_TRUE(std::isnan(ys[0])) << "pixel (0,0) sees the NaN at (1,1)";
+  EXPECT_FALSE(std::isnan(ys[15])) << "pixel (3,3) does not";
+}
+
+double cpu_seconds() {
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  return double(u.ru_utime.tv_sec) + 1e-6 * double(u.ru_utime.tv_usec) + double(u.ru_stime.tv_sec) +
+         1e-6 * double(u.ru_stime.tv_usec);
+}
+
+// Throughput of the reference case (3×3, 64→64, 128×128, N = 1).
+// Prints, does not assert; run with --gtest_also_run_disabled_tests and
+// VKJR2_VALIDATION=0.
+TEST(Conv2dBench, DISABLED_Forward3x3_64x64_128) {
+  Device dev(DeviceOptions{});
+  const std::int64_t c = 64, hw = 128;
+  Tensor x = Tensor::from(dev, {1, c, hw, hw}, test::random_floats(std::size_t(c * hw * hw), 1));
+  Tensor w = Tensor::from(dev, {c, c, 3, 3}, test::random_floats(std::size_t(c * c * 9), 2));
+  Tensor b = Tensor::from(dev, {c}, test::random_floats(std::size_t(c), 3));
+  Tensor y = Tensor::empty(dev, {1, c, hw, hw});
+  Tensor dx = Tensor::empty(dev, {1, c, hw, hw});
+  Tensor dw = Tensor::empty(dev, {c, c, 3, 3});
+  Tensor db = Tensor::empty(dev, {c});
+  const double gflop = 2.0 * c * hw * hw * c * 9 * 1e-9;
+  auto time = [&](const char* what, int iters, const std::function<void(Stream&)>& op) {
+    Stream s(dev);
+    op(s);  // warm-up (pipeline JIT)
+    s.run();
+    const double cpu0 = cpu_seconds();
+    const auto t0 = std::chrono::steady_clock::now();
+    for (int i = 0; i < iters; ++i) op(s);
+    s.run();
+    const double sec =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count() / iters;
+    const double cpu = (cpu_seconds() - cpu0) / iters;
+    // The machine is shared: GFLOP per CPU-second of this process shows the
+    // kernel's efficiency independent of how many cores it got.
+    std::printf("conv2d 3x3 64->64 128x128 %-22s %9.3f ms %7.2f GFLOP/s %7.2f GFLOP/cpu-s (%s)\n",
+                what, sec * 1e3, gflop / sec, gflop / cpu, dev.info().name.c_str());
+  };
+  Conv2dParams p;
+  p.pad = {1, 1, 1, 1};
+  p.activation = Activation::relu;
+  for (Conv2dAlgo a : {Conv2dAlgo::blocked, Conv2dAlgo::direct}) {
+    p.algo = a;
+    time((std::string("forward ") + kernels::conv2d_algo_name(a)).c_str(),
+         a == Conv2dAlgo::direct ? 2 : 10, [&](Stream& s) { kernels::conv2d(s, x, w, &b, y, p); });
+  }
+  p.activation = Activation::none;
+  for (Conv2dAlgo a : {Conv2dAlgo::blocked, Conv2dAlgo::direct}) {
+    p.algo = a;
+    time((std::string("backward-data ") + kernels::conv2d_algo_name(a)).c_str(),
+         a == Conv2dAlgo::direct ? 2 : 10,
+         [&](Stream& s) { kernels::conv2d_backward_data(s, y, w, dx, p); });
+  }
+  p.algo = Conv2dAlgo::auto_select;
+  time("backward-weight+bias", 2,
+       [&](Stream& s) { kernels::conv2d_backward_weight(s, x, y, dw, &db, p); });
+}
+
+}  // namespace
+}  // namespace vkjr2

@@ -1,0 +1,189 @@
+#include <vkjr2/kernels/elementwise.hpp>
+#include <vkjr2/kernels/ref/elementwise_ref.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+#include <vector>
+
+#include "support/gradcheck.hpp"
+#include "support/test_device.hpp"
+
+namespace vkjr2 {
+namespace {
+
+void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-5,
+                  double atol = 1e-6) {
+  ASSERT_EQ(got.size(), want.size());
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    ASSERT_NEAR(got[i], want[i], atol + rtol * std::fabs(want[i])) << "at " << i;
+  }
+}
+
+// Shapes: odd, not dividing the 1024-element group, 1×1 images, rank 1..4.
+const std::vector<Shape> kShapes = {{1},   {7}, {3, 5}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31},
+                                    {1025}};
+
+TEST(ElementwiseKernels, BinaryMatchReference) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 11;
+  for (const Shape& shape : kShapes) {
+    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
+    const auto n = std::size_t(shape.numel());
+    const auto av = test::random_floats(n, seed), bv = test::random_floats(n, seed + 1);
+    Tensor a = Tensor::from(dev, shape, av), b = Tensor::from(dev, shape, bv);
+    Tensor o[3] = {Tensor::empty(dev, shape), Tensor::empty(dev, shape), Tensor::empty(dev, shape)};
+    Stream s(dev);
+    kernels::add(s, a, b, o[0]);
+    kernels::sub(s, a, b, o[1]);
+    kernels::mul(s, a, b, o[2]);
+    s.run();
+    for (int op = 0; op < 3; ++op) expect_close(o[op].download(), ref::binary(op, av, bv));
+  }
+}
+
+TEST(ElementwiseKernels, ChannelBroadcastMatchesReference) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 12;
+  for (const Shape& shape : kShapes) {
+    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
+    const auto n = std::size_t(shape.numel());
+    const std::uint32_t c = shape.rank() == 1 ? std::uint32_t(shape[0]) : std::uint32_t(shape[1]);
+    const std::uint32_t hw = shape.rank() <= 2 ? 1u : std::uint32_t(n / shape[0] / c);
+    const auto xv = test::random_floats(n, seed), vv = test::random_floats(c, seed + 1);
+    const auto dyv = test::random_floats(n, seed + 2);
+    Tensor x = Tensor::from(dev, shape, xv), v = Tensor::from(dev, {c}, vv);
+    Tensor dy = Tensor::from(dev, shape, dyv);
+    Tensor ya = Tensor::empty(dev, shape), ym = Tensor::empty(dev, shape);
+    Tensor dx = Tensor::empty(dev, shape), dva = Tensor::empty(dev, {c}),
+           dvm = Tensor::empty(dev, {c});
+    Stream s(dev);
+    kernels::add_channel(s, x, v, ya);
+    kernels::mul_channel(s, x, v, ym);
+    kernels::add_channel_backward(s, dy, dva);
+    kernels::mul_channel_backward(s, x, v, dy, &dx, &dvm);
+    s.run();
+    expect_close(ya.download(), ref::binary(0, xv, vv, c, hw));
+    expect_close(ym.download(), ref::binary(2, xv, vv, c, hw));
+    expect_close(dx.download(), ref::binary(2, dyv, vv, c, hw));
+    expect_close(dva.download(), ref::channel_sum(dyv, {}, c, hw), 1e-4, 1e-5);
+    expect_close(dvm.download(), ref::channel_sum(dyv, xv, c, hw), 1e-4, 1e-5);
+  }
+}
+
+TEST(ElementwiseKernels, UnaryMatchReference) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 13;
+  for (const Shape& shape : kShapes) {
+    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
+    const auto n = std::size_t(shape.numel());
+    const auto xv = test::random_floats(n, seed, 0.1f, 3.f);  // log needs x > 0
+    const auto dyv = test::random_floats(n, seed + 1);
+    Tensor x = Tensor::from(dev, shape, xv), dy = Tensor::from(dev, shape, dyv);
+    std::vector<Tensor> t;
+    for (int i = 0; i < 6; ++i) t.push_back(Tensor::empty(dev, shape));
+    Stream s(dev);
+    kernels::scale_shift(s, x, -1.5f, 0.25f, t[0]);
+    kernels::scale_shift_backward(s, dy, -1.5f, t[1]);
+    kernels::exponential(s, x, t[2]);
+    kernels::exponential_backward(s, t[2], dy, t[3]);
+    kernels::logarithm(s, x, t[4]);
+    kernels::logarithm_backward(s, x, dy, t[5]);
+    s.run();
+    expect_close(t[0].download(), ref::unary(ref::Unary::scale_shift, xv, -1.5f, 0.25f));
+    expect_close(t[1].download(), ref::unary_backward(ref::Unary::scale_shift, xv, dyv, -1.5f));
+    const auto ey = ref::unary(ref::Unary::exp, xv);
+    expect_close(t[2].download(), ey, 1e-5);
+    expect_close(t[3].download(), ref::unary_backward(ref::Unary::exp, ey, dyv), 1e-5);
+    expect_close(t[4].download(), ref::unary(ref::Unary::log, xv), 1e-5);
+    expect_close(t[5].download(), ref::unary_backward(ref::Unary::log, xv, dyv), 1e-5);
+  }
+}
+
+// L = Σ w ⊙ f(x) on the device; analytic dL/dx from the backward kernel fed w.
+TEST(ElementwiseKernels, GradientsMatchFiniteDifferences) {
+  Device& dev = test::device();
+  const Shape shape{2, 3, 5, 4};
+  const std::uint32_t seed = 14;
+  SCOPED_TRACE("seed " + std::to_string(seed));
+  const auto n = std::size_t(shape.numel());
+  const auto xv = test::random_floats(n, seed, 0.5f, 2.f), bv = test::random_floats(n, seed + 1);
+  const auto vv = test::random_floats(3, seed + 2), w = test::random_floats(n, seed + 3);
+  Tensor b = Tensor::from(dev, shape, bv), v = Tensor::from(dev, {3}, vv);
+  Tensor wt = Tensor::from(dev, shape, w);
+  auto loss_of = [&](auto&& forward) {
+    return [&, forward](std::span<const float> xs) {
+      Tensor x = Tensor::from(dev, shape, xs), y = Tensor::empty(dev, shape);
+      Stream s(dev);
+      forward(s, x, y);
+      s.run();
+      return test::weighted_sum(y.download(), w);
+    };
+  };
+  Tensor x = Tensor::from(dev, shape, xv), y = Tensor::empty(dev, shape);
+  Tensor dx = Tensor::empty(dev, shape), dv = Tensor::empty(dev, {3});
+  {  // mul w.r.t. a
+    Stream s(dev);
+    kernels::mul_backward(s, x, b, wt, &dx, nullptr);
+    s.run();
+    test::expect_gradient_matches(
+        loss_of([&](Stream& st, const Tensor& a, const Tensor& o) { kernels::mul(st, a, b, o); }),
+        xv, dx.download(), "mul");
+  }
+  {  // mul_channel w.r.t. x and v
+    Stream s(dev);
+    kernels::mul_channel_backward(s, x, v, wt, &dx, &dv);
+    s.run();
+    test::expect_gradient_matches(loss_of([&](Stream& st, const Tensor& a, const Tensor& o) {
+                                    kernels::mul_channel(st, a, v, o);
+                                  }),
+                                  xv, dx.download(), "mul_channel dx");
+    auto loss_v = [&](std::span<const float> vs) {
+      Tensor vt = Tensor::from(dev, {3}, vs), o = Tensor::empty(dev, shape);
+      Stream st(dev);
+      kernels::mul_channel(st, x, vt, o);
+      st.run();
+      return test::weighted_sum(o.download(), w);
+    };
+    test::expect_gradient_matches(loss_v, vv, dv.download(), "mul_channel dv");
+  }
+  {  // exp (from the output) and log (from the input)
+    Stream s(dev);
+    kernels::exponential(s, x, y);
+    kernels::exponential_backward(s, y, wt, dx);
+    s.run();
+    test::expect_gradient_matches(loss_of([](Stream& st, const Tensor& a, const Tensor& o) {
+                                    kernels::exponential(st, a, o);
+                                  }),
+                                  xv, dx.download(), "exp", {.step = 1e-3});
+    Stream s2(dev);
+    kernels::logarithm_backward(s2, x, wt, dx);
+    s2.run();
+    test::expect_gradient_matches(
+        loss_of([](Stream& st, const Tensor& a, const Tensor& o) { kernels::logarithm(st, a, o); }),
+        xv, dx.download(), "log", {.step = 1e-3});
+  }
+}
+
+TEST(ElementwiseKernels, BadInputsAreClearErrors) {
+  Device& dev = test::device();
+  Stream s(dev);
+  Tensor a = Tensor::empty(dev, {2, 3, 4, 4}), b = Tensor::empty(dev, {2, 3, 4, 5});
+  Tensor v4 = Tensor::empty(dev, {4}), empty = Tensor::empty(dev, {0});
+  EXPECT_THROW(kernels::add(s, a, b, a), InvalidArgument);
+  EXPECT_THROW(kernels::mul(s, a, a, b), InvalidArgument);
+  try {
+    kernels::add_channel(s, a, v4, a);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("per channel"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(kernels::exponential(s, empty, empty), InvalidArgument);
+  EXPECT_THROW(kernels::logarithm_backward(s, a, b, a), InvalidArgument);
+  Tensor ints = Tensor::empty(dev, {2, 3, 4, 4}, DType::i32);
+  EXPECT_THROW(kernels::scale_shift(s, ints, 1.f, 0.f, a), InvalidArgument);
+}
+
+}  // namespace
+}  // namespace vkjr2

@@ -1,0 +1,148 @@
+#include <vkjr2/kernels/ref/resize_ref.hpp>
+#include <vkjr2/kernels/resize.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <string>
+
+#include "support/gradcheck.hpp"
+#include "support/test_device.hpp"
+
+namespace vkjr2 {
+namespace {
+
+using kernels::ResizeMode;
+
+constexpr ResizeMode kModes[] = {ResizeMode::bilinear_half_pixel, ResizeMode::bilinear_legacy,
+                                 ResizeMode::bilinear_align_corners, ResizeMode::nearest};
+
+struct Case {
+  std::int64_t n, c, h, w, oh, ow;
+};
+
+std::string str(const Case& k, ResizeMode m) {
+  return "[" + std::to_string(k.n) + "," + std::to_string(k.c) + "," + std::to_string(k.h) + "," +
+         std::to_string(k.w) + "] -> " + std::to_string(k.oh) + "x" + std::to_string(k.ow) +
+         " mode " + std::to_string(static_cast<int>(m));
+}
+
+std::vector<Case> cases(std::uint32_t seed) {
+  std::vector<Case> v = {{1, 1, 1, 1, 1, 1},   {1, 2, 1, 1, 5, 3},    {1, 1, 6, 5, 1, 1},
+                         {2, 3, 8, 8, 4, 4},   {1, 3, 7, 9, 14, 18},  {1, 2, 17, 13, 5, 29},
+                         {1, 1, 64, 3, 11, 7}, {1, 1, 10, 10, 23, 23}};
+  std::mt19937 rng(seed);
+  auto uni = [&](int lo, int hi) {
+    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
+  };
+  for (int i = 0; i < 5; ++i)
+    v.push_back({uni(1, 2), uni(1, 4), uni(1, 40), uni(1, 40), uni(1, 40), uni(1, 40)});
+  return v;
+}
+
+TEST(ResizeKernels, MatchReference) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 601;
+  for (const Case& k : cases(seed)) {
+    for (ResizeMode m : kModes) {
+      SCOPED_TRACE(str(k, m) + " seed=" + std::to_string(seed));
+      const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
+      const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
+      const auto dyv = test::random_floats(std::size_t(ys.numel()), seed + 1);
+      Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
+      Tensor dy = Tensor::from(dev, ys, dyv), dx = Tensor::empty(dev, xs);
+      Stream s(dev);
+      kernels::resize(s, x, m, y);
+      kernels::resize_backward(s, dy, m, dx);
+      s.run();
+      const auto want = ref::resize(xv, k.n * k.c, k.h, k.w, k.oh, k.ow, m);
+      const auto got = y.download();
+      for (std::size_t i = 0; i < want.size(); ++i) {
+        ASSERT_NEAR(got[i], want[i], 1e-5 * (1 + std::fabs(want[i]))) << "y at " << i;
+      }
+      const auto dwant = ref::resize_backward(dyv, k.n * k.c, k.h, k.w, k.oh, k.ow, m);
+      const auto dgot = dx.download();
+      for (std::size_t i = 0; i < dwant.size(); ++i) {
+        ASSERT_NEAR(dgot[i], dwant[i], 1e-4 * (1 + std::fabs(dwant[i]))) << "dx at " << i;
+      }
+    }
+  }
+}
+
+TEST(ResizeKernels, ConventionsOnKnownValues) {
+  // x = 0..7 on one row; downsample 8 -> 4 and upsample 4 -> 8.
+  Device& dev = test::device();
+  std::vector<float> ramp(8);
+  for (int i = 0; i < 8; ++i) ramp[std::size_t(i)] = float(i);
+  Tensor x = Tensor::from(dev, {1, 1, 1, 8}, ramp);
+  Tensor half = Tensor::empty(dev, {1, 1, 1, 4}), legacy = Tensor::empty(dev, {1, 1, 1, 4});
+  Tensor corners = Tensor::empty(dev, {1, 1, 1, 4}), near = Tensor::empty(dev, {1, 1, 1, 4});
+  Stream s(dev);
+  kernels::resize(s, x, ResizeMode::bilinear_half_pixel, half);
+  kernels::resize(s, x, ResizeMode::bilinear_legacy, legacy);
+  kernels::resize(s, x, ResizeMode::bilinear_align_corners, corners);
+  kernels::resize(s, x, ResizeMode::nearest, near);
+  s.run();
+  EXPECT_EQ(half.download(), (std::vector<float>{0.5f, 2.5f, 4.5f, 6.5f}));  // src = 2d + 0.5
+  EXPECT_EQ(legacy.download(), (std::vector<float>{0.f, 2.f, 4.f, 6.f}));    // src = 2d
+  EXPECT_EQ(near.download(), (std::vector<float>{0.f, 2.f, 4.f, 6.f}));
+  const auto c = corners.download();  // src = 7d/3
+  for (int d = 0; d < 4; ++d) EXPECT_NEAR(c[std::size_t(d)], 7.f * float(d) / 3.f, 1e-5);
+
+  Tensor up = Tensor::empty(dev, {1, 1, 1, 8});
+  Tensor x4 = Tensor::from(dev, {1, 1, 1, 4}, std::vector<float>{0, 1, 2, 3});
+  kernels::resize(s, x4, ResizeMode::bilinear_legacy, up);
+  s.run();
+  // src = d/2; the last output clamps onto the last pixel.
+  EXPECT_EQ(up.download(), (std::vector<float>{0, 0.5f, 1, 1.5f, 2, 2.5f, 3, 3}));
+  kernels::resize(s, x4, ResizeMode::bilinear_half_pixel, up);
+  s.run();
+  // src = (d + 0.5)/2 − 0.5, clamped to [0, 3].
+  EXPECT_EQ(up.download(), (std::vector<float>{0, 0.25f, 0.75f, 1.25f, 1.75f, 2.25f, 2.75f, 3}));
+}
+
+TEST(ResizeKernels, GradientsMatchFiniteDifferences) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 602;
+  const Shape xs{1, 2, 5, 7}, ys{1, 2, 8, 4};
+  const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
+  const auto wv = test::random_floats(std::size_t(ys.numel()), seed + 1);
+  for (ResizeMode m : kModes) {
+    SCOPED_TRACE("mode " + std::to_string(static_cast<int>(m)) + " seed=" + std::to_string(seed));
+    Tensor w = Tensor::from(dev, ys, wv), dx = Tensor::empty(dev, xs);
+    Stream s(dev);
+    kernels::resize_backward(s, w, m, dx);
+    s.run();
+    test::expect_gradient_matches(
+        [&](std::span<const float> xi) {
+          Tensor x = Tensor::from(dev, xs, xi), y = Tensor::empty(dev, ys);
+          Stream st(dev);
+          kernels::resize(st, x, m, y);
+          st.run();
+          return test::weighted_sum(y.download(), wv);
+        },
+        xv, dx.download(), "resize");
+  }
+}
+
+TEST(ResizeKernels, BadInputsAreClearErrors) {
+  Device& dev = test::device();
+  Stream s(dev);
+  Tensor x = Tensor::empty(dev, {1, 2, 8, 8});
+  Tensor wrong_c = Tensor::empty(dev, {1, 3, 4, 4});
+  EXPECT_THROW(kernels::resize(s, x, ResizeMode::nearest, wrong_c), InvalidArgument);
+  Tensor flat = Tensor::empty(dev, {64});
+  EXPECT_THROW(kernels::resize(s, flat, ResizeMode::nearest, x), InvalidArgument);
+  EXPECT_THROW(kernels::resize(s, x, static_cast<ResizeMode>(7), x), InvalidArgument);
+  try {
+    Tensor empty = Tensor::empty(dev, {1, 2, 0, 8});
+    kernels::resize_backward(s, x, ResizeMode::bilinear_legacy, empty);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("empty"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace vkjr2
