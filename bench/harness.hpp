@@ -2,7 +2,7 @@
 // figure is compared with a peer measured in the same run.
 #pragma once
 
-#include <vkjr2/runtime/device.hpp>
+#include <vkjr2/runtime/stream.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -56,6 +56,28 @@ inline std::string machine_name() {
     }
   }
   return "unknown CPU";
+}
+
+// Peak fp32 FMA throughput of the device (shaders/bench_fma.comp), GFLOP/s:
+// what compute-bound kernels report their fraction of.
+inline double device_fma_gflops(const Device& dev) {
+  struct FmaPush {
+    std::uint32_t iterations;
+    float a;
+    float b;
+  };
+  static const KernelDef kFma{"bench_fma", {BindingKind::storage}, sizeof(FmaPush)};
+  constexpr std::uint32_t kGroups = 256, kLocal = 64, kIters = 512;
+  Tensor result = Tensor::empty(dev, {kGroups * kLocal * 4});
+  Stream s(dev);
+  const double sec = median_seconds(
+      [&] {
+        s.dispatch(kFma, {out(result)}, FmaPush{kIters, 0.999f, 1e-4f}, Groups{kGroups});
+        s.run();
+      },
+      5);
+  const double flops = 2.0 * kGroups * kLocal * kIters * 4 /*unroll*/ * 16 /*chains*/ * 4 /*vec4*/;
+  return flops / sec * 1e-9;
 }
 
 inline void print_table(const std::string& title, const Device& device,

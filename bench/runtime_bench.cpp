@@ -13,12 +13,6 @@
 namespace vkjr2 {
 namespace {
 
-struct FmaPush {
-  std::uint32_t iterations;
-  float a;
-  float b;
-};
-
 // Dispatch overhead: one tiny dispatch per submit vs 100 in one command buffer.
 std::vector<bench::Result> dispatch_overhead(const Device& dev) {
   std::vector<Tensor> tiny;
@@ -109,18 +103,7 @@ double cpu_fma_gflops(unsigned threads) {
 }
 
 std::vector<bench::Result> fma_throughput(const Device& dev, double* device_peak) {
-  static const KernelDef kFma{"bench_fma", {BindingKind::storage}, sizeof(FmaPush)};
-  constexpr std::uint32_t kGroups = 256, kLocal = 64, kIters = 512;
-  Tensor out = Tensor::empty(dev, {kGroups * kLocal * 4});
-  Stream s(dev);
-  const double sec = bench::median_seconds(
-      [&] {
-        s.dispatch(kFma, {vkjr2::out(out)}, FmaPush{kIters, 0.999f, 1e-4f}, Groups{kGroups});
-        s.run();
-      },
-      5);
-  const double flops = 2.0 * kGroups * kLocal * kIters * 4 /*unroll*/ * 16 /*chains*/ * 4 /*vec4*/;
-  const double gflops = flops / sec * 1e-9;
+  const double gflops = bench::device_fma_gflops(dev);
   *device_peak = gflops;
   const unsigned threads = std::max(1u, std::thread::hardware_concurrency());
   bench::Result r{"FMA fp32 throughput", gflops, "GFLOP/s",
