@@ -74,7 +74,7 @@ const KernelDef& pass_kernel(std::uint32_t radix) {
   }
 }
 
-// Magic number for fast_div() in fft_common.glsl: exact unsigned division of
+// Magic number for fast_div32() in fft_common.glsl: exact unsigned division of
 // any 32-bit numerator by d (Granlund & Montgomery 1994, Fig. 4.1).
 std::array<std::uint32_t, 2> div_magic(std::uint32_t d) {
   std::uint32_t l = 0;

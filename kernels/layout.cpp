@@ -1,23 +1,11 @@
 #include <vkjr2/kernels/check.hpp>
+#include <vkjr2/kernels/fast_div.hpp>
 #include <vkjr2/kernels/layout.hpp>
 
 #include <string>
 
 namespace vkjr2::kernels {
 namespace {
-
-// Multiply-high constants for n / d in shaders (fast_div in
-// shaders/slice.comp): m = ceil(2^(31 + l) / d), l = ceil(log2 d); exact for
-// n < 2^31 (Granlund & Montgomery 1994). Integer division is scalarized and
-// slow on llvmpipe.
-struct Magic {
-  std::uint32_t m = 0, l = 0;
-};
-Magic magic(std::uint64_t d) {
-  std::uint32_t l = 0;
-  while ((std::uint64_t(1) << l) < d) ++l;
-  return {static_cast<std::uint32_t>(((std::uint64_t(1) << (31 + l)) + d - 1) / d), l};
-}
 
 // Mirrors the push block of shaders/slice.comp.
 struct SlicePush {

@@ -47,7 +47,7 @@ layout(push_constant) uniform Push {
 
 // Unsigned division by an invariant divisor d, exact for every 32-bit n
 // (Granlund & Montgomery 1994, Fig. 4.1): m.x = magic, m.y = sh1 | sh2 << 8.
-uint fast_div(uint num, uvec2 m) {
+uint fast_div32(uint num, uvec2 m) {
   uint hi, lo;
   umulExtended(num, m.x, hi, lo);
   return (hi + ((num - hi) >> (m.y & 0xffu))) >> (m.y >> 8u);
@@ -189,11 +189,11 @@ void dft(inout vec2 a[32]) { dft32(a); }
 void main() {
   const uint g = linear_group() * 64u + gl_LocalInvocationID.x;
   if (g >= pc.count) return;
-  const uint t = fast_div(g, pc.div_inner);
+  const uint t = fast_div32(g, pc.div_inner);
   const uint col = g - t * pc.inner;
-  const uint outer = fast_div(t, pc.div_nr);
+  const uint outer = fast_div32(t, pc.div_nr);
   const uint j = t - outer * pc.nr;
-  const uint q = fast_div(j, pc.div_p);
+  const uint q = fast_div32(j, pc.div_p);
   const uint k = j - q * pc.p;
 
   const uint in_base = outer * pc.in_outer + col;

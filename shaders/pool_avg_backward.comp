@@ -12,15 +12,6 @@ layout(push_constant) uniform Push {
   uvec2 blocks_magic; uvec2 rows_magic;  // divisors: blocks per row, rows per plane (written)
 } pc;
 
-// n / d for n < 2^31 by multiply-high (Granlund & Montgomery 1994):
-// magic.x = ceil(2^(31 + l) / d), magic.y = l = ceil(log2 d); integer
-// division is scalarized and slow on llvmpipe.
-uint fast_div(uint n, uvec2 magic) {
-  if (magic.y == 0u) return n;
-  uint hi, lo;
-  umulExtended(n, magic.x, hi, lo);
-  return hi >> (magic.y - 1u);
-}
 
 int first_window(int p, int pad, int k, int s) {
   const int a = p + pad - k + 1;

@@ -13,15 +13,6 @@ layout(push_constant) uniform Push {
   uvec2 blocks_magic; uvec2 ho_magic; uvec2 cw_magic;
 } pc;
 
-// n / d for n < 2^31 by multiply-high (Granlund & Montgomery 1994):
-// magic.x = ceil(2^(31 + l) / d), magic.y = l = ceil(log2 d); integer
-// division is scalarized and slow on llvmpipe.
-uint fast_div(uint n, uvec2 magic) {
-  if (magic.y == 0u) return n;
-  uint hi, lo;
-  umulExtended(n, magic.x, hi, lo);
-  return hi >> (magic.y - 1u);
-}
 
 void main() {
   const uint blocks_x = (uint(pc.wo) + 3u) / 4u;
