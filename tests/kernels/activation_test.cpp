@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
 #include "support/test_device.hpp"
 
@@ -15,10 +16,7 @@ namespace {
 
 void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-5,
                   double atol = 1e-6) {
-  ASSERT_EQ(got.size(), want.size());
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_NEAR(got[i], want[i], atol + rtol * std::fabs(want[i])) << "at " << i;
-  }
+  test::expect_all_near(got, want, rtol, atol);
 }
 
 const std::vector<Shape> kShapes = {{1}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31}, {1025}};

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
 #include "support/test_device.hpp"
 
@@ -16,10 +17,7 @@ namespace {
 
 void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-4,
                   double atol = 1e-5) {
-  ASSERT_EQ(got.size(), want.size());
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_NEAR(got[i], want[i], atol + rtol * std::fabs(want[i])) << "at " << i;
-  }
+  test::expect_all_near(got, want, rtol, atol);
 }
 
 // rows × k: single rows, short rows (< subgroup), rows not filling a group, long rows.
