@@ -68,10 +68,7 @@ void sum(Stream& stream, const Tensor& x, const Tensor& out_sum) {
     throw InvalidArgument("sum", "out must have exactly one element, got " + out_sum.shape().str());
   }
   const Device device = stream.device();
-  if (!device.info().subgroup_arithmetic) {
-    throw Error("sum", "device '" + device.info().name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
+  require_subgroup_arithmetic(stream, "sum");
   Tensor current = x;
   for (;;) {
     const std::uint32_t groups = div_up(n, kSumPerGroup);

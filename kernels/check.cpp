@@ -1,5 +1,6 @@
 #include <vkjr2/kernels/check.hpp>
 
+#include <algorithm>
 #include <string>
 
 namespace vkjr2::kernels {
@@ -52,6 +53,20 @@ void require_shape(const Tensor& t, const Shape& expected, const char* op, const
     throw InvalidArgument(
         op, std::string(name) + " has shape " + t.shape().str() + ", expected " + expected.str());
   }
+}
+
+void require_subgroup_arithmetic(const Stream& stream, const char* op) {
+  const DeviceInfo& info = stream.device().info();
+  if (!info.subgroup_arithmetic || info.subgroup_size == 0) {
+    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
+                "pick another device with VKJR2_DEVICE");
+  }
+}
+
+Groups subgroup_row_groups(const Stream& stream, std::uint32_t rows, const char* op) {
+  require_subgroup_arithmetic(stream, op);
+  const DeviceInfo& info = stream.device().info();
+  return groups_1d(div_up(rows, std::max(1u, 256u / info.subgroup_size)), info);
 }
 
 }  // namespace vkjr2::kernels

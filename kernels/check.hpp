@@ -2,7 +2,7 @@
 // InvalidArgument naming the op, the argument and what was expected.
 #pragma once
 
-#include <vkjr2/runtime/tensor.hpp>
+#include <vkjr2/runtime/stream.hpp>
 
 #include <cstdint>
 
@@ -20,5 +20,12 @@ void require_same_numel(const Tensor& a, const Tensor& b, const char* op, const 
                         const char* b_name);
 // t has shape `expected`.
 void require_shape(const Tensor& t, const Shape& expected, const char* op, const char* name);
+
+// The stream's device has subgroup arithmetic (subgroupAdd & co.) in compute
+// shaders, which the reduction kernels need.
+void require_subgroup_arithmetic(const Stream& stream, const char* op);
+// Workgroups of 256 invocations for kernels that give each of `rows` rows one
+// subgroup; checks require_subgroup_arithmetic first.
+Groups subgroup_row_groups(const Stream& stream, std::uint32_t rows, const char* op);
 
 }  // namespace vkjr2::kernels

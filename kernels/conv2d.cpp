@@ -443,10 +443,7 @@ void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
                     groups_1d(div_up(std::uint64_t(dweight.numel()), 64), info));
   }
   if (dbias != nullptr) {
-    if (!info.subgroup_arithmetic) {
-      throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                  "pick another device with VKJR2_DEVICE");
-    }
+    require_subgroup_arithmetic(stream, op);
     stream.dispatch(kBwdBias, {texel(dy), out(*dbias)}, c, groups_1d(d.cout, info));
   }
 }

@@ -127,14 +127,6 @@ void check_slice(const Shape& big, const Shape& small, const SliceStart& s, cons
   }
 }
 
-void require_subgroups(const Stream& stream, const char* op) {
-  const DeviceInfo& info = stream.device().info();
-  if (!info.subgroup_arithmetic) {
-    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
-}
-
 }  // namespace
 
 void pad(Stream& stream, const Tensor& x, const Pad2d& p, float value, const Tensor& y) {
@@ -260,7 +252,7 @@ void channel_affine_backward(Stream& stream, const Tensor& x, const Tensor& scal
   if (dscale == nullptr && dbias == nullptr) return;
   require_f32(x, op, "x");
   require_same_shape(x, dy, op, "x", "dy");
-  require_subgroups(stream, op);
+  require_subgroup_arithmetic(stream, op);
   Tensor ds = dscale != nullptr ? *dscale : Tensor::empty(device, Shape{c});
   Tensor db = dbias != nullptr ? *dbias : Tensor::empty(device, Shape{c});
   if (require_f32(ds, op, "dscale") != c || require_f32(db, op, "dbias") != c) {

@@ -23,15 +23,6 @@ static_assert(sizeof(PointwisePush) <= 128 && sizeof(RowsPush) <= 128);
 
 enum : std::uint32_t { kL1 = 0, kMse = 1, kCharbonnier = 2 };
 
-Groups row_groups(const Stream& stream, std::uint32_t rows, const char* op) {
-  const DeviceInfo& info = stream.device().info();
-  if (!info.subgroup_arithmetic || info.subgroup_size == 0) {
-    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
-  return groups_1d(div_up(rows, std::max(1u, 256u / info.subgroup_size)), info);
-}
-
 void require_scalar(const Tensor& t, const char* op, const char* name) {
   if (require_f32(t, op, name) != 1) {
     throw InvalidArgument(
@@ -48,7 +39,7 @@ void pointwise(Stream& stream, std::uint32_t kind, const char* op, const Tensor&
   require_f32(target, op, "target");
   require_same_shape(pred, target, op, "pred", "target");
   require_scalar(loss, op, "loss");
-  row_groups(stream, 1, op);  // subgroup check
+  require_subgroup_arithmetic(stream, op);
   const std::uint32_t groups = div_up(n, kReducePerGroup);
   const Tensor partial = groups == 1 ? loss : Tensor::empty(stream.device(), Shape{groups});
   stream.dispatch(k, {texel(pred), texel(target), out(partial)},
@@ -147,7 +138,7 @@ void cosine_similarity(Stream& stream, const Tensor& a, const Tensor& b, const T
   require_same_shape(a, b, op, "a", "b");
   const auto len = std::uint32_t(a.shape()[-1]);
   stream.dispatch(k, {texel(a), texel(b), out(y)}, RowsPush{rows, len, eps},
-                  row_groups(stream, rows, op));
+                  subgroup_row_groups(stream, rows, op));
 }
 
 void cosine_similarity_backward(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& dy,
@@ -167,7 +158,7 @@ void cosine_similarity_backward(Stream& stream, const Tensor& a, const Tensor& b
   require_same_shape(a, db, op, "a", "db");
   const auto len = std::uint32_t(a.shape()[-1]);
   stream.dispatch(k, {texel(a), texel(b), texel(dy), out(da), out(db)}, RowsPush{rows, len, eps},
-                  row_groups(stream, rows, op));
+                  subgroup_row_groups(stream, rows, op));
 }
 
 void cross_entropy(Stream& stream, const Tensor& logits, const Tensor& labels, const Tensor& loss) {
@@ -180,7 +171,7 @@ void cross_entropy(Stream& stream, const Tensor& logits, const Tensor& labels, c
   const Tensor per_row = c.rows == 1 ? loss : Tensor::empty(stream.device(), Shape{c.rows});
   stream.dispatch(k, {texel(logits), texel(labels, VK_FORMAT_R32_SINT), out(per_row)},
                   RowsPush{c.rows, c.k, float(1.0 / double(c.rows))},
-                  row_groups(stream, c.rows, op));
+                  subgroup_row_groups(stream, c.rows, op));
   if (c.rows > 1) sum(stream, per_row, loss);
 }
 
@@ -197,7 +188,7 @@ void cross_entropy_backward(Stream& stream, const Tensor& logits, const Tensor& 
   require_same_shape(logits, d_logits, op, "logits", "d_logits");
   stream.dispatch(k, {texel(logits), texel(labels, VK_FORMAT_R32_SINT), texel(g), out(d_logits)},
                   RowsPush{c.rows, c.k, float(1.0 / double(c.rows))},
-                  row_groups(stream, c.rows, op));
+                  subgroup_row_groups(stream, c.rows, op));
 }
 
 }  // namespace vkjr2::kernels

@@ -35,14 +35,6 @@ constexpr std::uint32_t kChunk = 4096;  // elements per psnr_partial workgroup
 constexpr BindingKind kT = BindingKind::texel;
 constexpr BindingKind kS = BindingKind::storage;
 
-void require_subgroups(const Stream& stream, const char* op) {
-  const DeviceInfo& info = stream.device().info();
-  if (!info.subgroup_arithmetic) {
-    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
-}
-
 void require_range(float data_range, const char* op) {
   if (!(data_range > 0.f) || !std::isfinite(data_range)) {
     throw InvalidArgument(
@@ -154,7 +146,7 @@ void psnr(Stream& stream, const Tensor& a, const Tensor& b, float data_range,
   const char* op = "psnr";
   require_pair(a, b, out_psnr, op, "a", "b", "out");
   require_range(data_range, op);
-  require_subgroups(stream, op);
+  require_subgroup_arithmetic(stream, op);
   const Shape& s = a.shape();
   per_image_reduce(stream, a, b, static_cast<std::uint32_t>(s[0]),
                    static_cast<std::uint32_t>(s[1] * s[2] * s[3]), 1, data_range * data_range,
@@ -166,7 +158,7 @@ void ssim(Stream& stream, const Tensor& x, const Tensor& y, float data_range,
   const char* op = "ssim";
   require_pair(x, y, out_ssim, op, "x", "y", "out");
   require_range(data_range, op);
-  require_subgroups(stream, op);
+  require_subgroup_arithmetic(stream, op);
   const SsimPush p = ssim_push(x.shape(), data_range, op);
   const Horizontal t = ssim_horizontal(stream, x, y, p);
   const Tensor map = ssim_vertical(stream, t, t.t1, p, 0);

@@ -66,14 +66,6 @@ Groups row_groups(const Shape& s, const DeviceInfo& info) {
   return groups_1d(div_up(items, kGroup), info);
 }
 
-void require_subgroups(const Stream& stream, const char* op) {
-  const DeviceInfo& info = stream.device().info();
-  if (!info.subgroup_arithmetic) {
-    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
-}
-
 }  // namespace
 
 Pool2d pool_same(std::int32_t kernel_h, std::int32_t kernel_w, std::int32_t stride_h,
@@ -198,7 +190,7 @@ void global_avg_pool(Stream& stream, const Tensor& x, const Tensor& y) {
   require_f32(y, op, "y");
   const Shape& s = x.shape();
   require_shape(y, Shape{s[0], s[1], 1, 1}, op, "y");
-  require_subgroups(stream, op);
+  require_subgroup_arithmetic(stream, op);
   const auto planes = static_cast<std::uint32_t>(s[0] * s[1]);
   stream.dispatch(k, {texel(x), out(y)},
                   GlobalPush{planes, static_cast<std::uint32_t>(s[2] * s[3])},

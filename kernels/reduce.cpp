@@ -11,7 +11,6 @@ namespace {
 
 constexpr std::uint32_t kPerGroup = 1024;  // elementwise: 256 invocations × 4
 constexpr std::uint32_t kMaxChunk = 4096;  // max_all: elements per row of the first pass
-constexpr std::uint32_t kGroupSize = 256;  // invocations per group of the row kernels
 
 struct RowsPush {
   std::uint32_t rows, k;
@@ -26,21 +25,6 @@ struct ChannelsPush {
   std::uint32_t batch, channels, hw;
 };
 static_assert(sizeof(MaxPush) <= 128 && sizeof(ChannelsPush) <= 128);
-
-void require_subgroups(const Stream& stream, const char* op) {
-  const DeviceInfo& info = stream.device().info();
-  if (!info.subgroup_arithmetic || info.subgroup_size == 0) {
-    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
-}
-
-// Workgroups for one subgroup per row.
-Groups row_groups(const Stream& stream, std::uint32_t rows) {
-  const DeviceInfo& info = stream.device().info();
-  const std::uint32_t per_group = std::max(1u, kGroupSize / info.subgroup_size);
-  return groups_1d(div_up(rows, per_group), info);
-}
 
 struct RowGeometry {
   std::uint32_t rows, k;
@@ -64,10 +48,10 @@ void rows_forward(Stream& stream, std::uint32_t op, const char* name, const Tens
                   const Tensor& out) {
   static const KernelDef k{
       "reduce_rows", {BindingKind::texel, BindingKind::storage}, sizeof(RowsPush)};
-  require_subgroups(stream, name);
+  require_subgroup_arithmetic(stream, name);
   const RowGeometry g = rows_of(x, out, name, "out");
-  stream.dispatch(k, {texel(x), vkjr2::out(out)}, RowsPush{g.rows, g.k}, row_groups(stream, g.rows),
-                  {op});
+  stream.dispatch(k, {texel(x), vkjr2::out(out)}, RowsPush{g.rows, g.k},
+                  subgroup_row_groups(stream, g.rows, name), {op});
 }
 
 void rows_backward(Stream& stream, std::uint32_t op, const char* name, const Tensor& dy,
@@ -100,8 +84,8 @@ void max_pass(Stream& stream, const Tensor& x, const Tensor* idx_in, std::uint32
   const Arg idx =
       idx_in != nullptr ? texel(*idx_in, VK_FORMAT_R32_SINT) : texel(x, VK_FORMAT_R32_SINT);
   stream.dispatch(k, {texel(x), idx, out(value), out(index)},
-                  MaxPush{rows, k_len, n, global_index ? 1u : 0u}, row_groups(stream, rows),
-                  {idx_in != nullptr ? 1u : 0u});
+                  MaxPush{rows, k_len, n, global_index ? 1u : 0u},
+                  subgroup_row_groups(stream, rows, "reduce_max"), {idx_in != nullptr ? 1u : 0u});
 }
 
 void require_index(const Tensor& index, std::int64_t count, const char* op) {
@@ -168,14 +152,14 @@ void mean_all_backward(Stream& stream, const Tensor& dy, const Tensor& dx) {
 }
 
 void max_rows(Stream& stream, const Tensor& x, const Tensor& value, const Tensor& index) {
-  require_subgroups(stream, "max_rows");
+  require_subgroup_arithmetic(stream, "max_rows");
   const RowGeometry g = rows_of(x, value, "max_rows", "value");
   require_index(index, g.rows, "max_rows");
   max_pass(stream, x, nullptr, g.rows, g.k, g.rows * g.k, false, value, index);
 }
 
 void max_all(Stream& stream, const Tensor& x, const Tensor& value, const Tensor& index) {
-  require_subgroups(stream, "max_all");
+  require_subgroup_arithmetic(stream, "max_all");
   std::uint32_t n = require_f32(x, "max_all", "x");
   if (require_f32(value, "max_all", "value") != 1) {
     throw InvalidArgument("max_all",
@@ -215,10 +199,10 @@ void reduce_channels(Stream& stream, const Tensor& a, const Tensor* b, std::uint
   static const KernelDef k{"reduce_channels",
                            {BindingKind::texel, BindingKind::texel, BindingKind::storage},
                            sizeof(ChannelsPush)};
-  require_subgroups(stream, "reduce_channels");
+  require_subgroup_arithmetic(stream, "reduce_channels");
   const Tensor& bs = b != nullptr ? *b : a;
   stream.dispatch(k, {texel(a), texel(bs), vkjr2::out(out)}, ChannelsPush{batch, channels, hw},
-                  row_groups(stream, channels), {mode});
+                  subgroup_row_groups(stream, channels, "reduce_channels"), {mode});
 }
 
 }  // namespace detail

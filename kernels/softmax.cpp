@@ -11,15 +11,6 @@ struct SoftmaxPush {
 };
 static_assert(sizeof(SoftmaxPush) <= 128);
 
-Groups row_groups(const Stream& stream, std::uint32_t rows, const char* op) {
-  const DeviceInfo& info = stream.device().info();
-  if (!info.subgroup_arithmetic || info.subgroup_size == 0) {
-    throw Error(op, "device '" + info.name + "' lacks subgroup arithmetic",
-                "pick another device with VKJR2_DEVICE");
-  }
-  return groups_1d(div_up(rows, std::max(1u, 256u / info.subgroup_size)), info);
-}
-
 void forward(Stream& stream, bool log, const char* op, const Tensor& x, const Tensor& y) {
   static const KernelDef k{
       "softmax", {BindingKind::texel, BindingKind::storage}, sizeof(SoftmaxPush)};
@@ -27,8 +18,8 @@ void forward(Stream& stream, bool log, const char* op, const Tensor& x, const Te
   require_f32(y, op, "y");
   require_same_shape(x, y, op, "x", "y");
   const auto len = std::uint32_t(x.shape()[-1]);
-  stream.dispatch(k, {texel(x), out(y)}, SoftmaxPush{n / len, len}, row_groups(stream, n / len, op),
-                  {log ? 1u : 0u});
+  stream.dispatch(k, {texel(x), out(y)}, SoftmaxPush{n / len, len},
+                  subgroup_row_groups(stream, n / len, op), {log ? 1u : 0u});
 }
 
 void backward(Stream& stream, bool log, const char* op, const Tensor& y, const Tensor& dy,
@@ -43,7 +34,7 @@ void backward(Stream& stream, bool log, const char* op, const Tensor& y, const T
   require_same_shape(y, dx, op, "y", "dx");
   const auto len = std::uint32_t(y.shape()[-1]);
   stream.dispatch(k, {texel(y), texel(dy), out(dx)}, SoftmaxPush{n / len, len},
-                  row_groups(stream, n / len, op), {log ? 1u : 0u});
+                  subgroup_row_groups(stream, n / len, op), {log ? 1u : 0u});
 }
 
 }  // namespace
