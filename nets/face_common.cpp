@@ -1,0 +1,126 @@
+#include <vkjr2/nets/face_common.hpp>
+#include <vkjr2/runtime/error.hpp>
+
+#include <cstdlib>
+#include <string>
+
+namespace vkjr2::nets {
+namespace {
+
+void require_rank(const HostTensor& t, std::size_t rank, const char* op, const char* name) {
+  if (t.shape.size() != rank || std::int64_t(t.values.size()) != t.numel()) {
+    throw InvalidArgument(op,
+                          std::string("weight '") + name + "' has shape " + shape_str(t.shape) +
+                              ", expected rank " + std::to_string(rank),
+                          "the model file does not match this network: re-run scripts/setup");
+  }
+}
+
+}  // namespace
+
+std::filesystem::path face_api_model_dir() {
+  std::filesystem::path dir;
+  if (const char* env = std::getenv("VKJR2_FACE_API_DIR"); env != nullptr && *env != 0) {
+    dir = env;
+  } else {
+    std::filesystem::path cache;
+    if (const char* c = std::getenv("VKJR2_CACHE_DIR"); c != nullptr && *c != 0) {
+      cache = c;
+    } else if (const char* home = std::getenv("HOME"); home != nullptr && *home != 0) {
+      cache = std::filesystem::path(home) / ".cache" / "vkjr2";
+    } else {
+      throw Error("face_api_model_dir",
+                  "neither VKJR2_FACE_API_DIR, VKJR2_CACHE_DIR nor HOME is set",
+                  "set VKJR2_FACE_API_DIR to face-api's model/ folder");
+    }
+    dir = cache / "face-api-1.7.15" / "model";
+  }
+  if (!std::filesystem::is_directory(dir)) {
+    throw Error("face_api_model_dir", "face-api models not found at " + dir.string(),
+                "run scripts/setup (it fetches @vladmandic/face-api 1.7.15 from npm), or set "
+                "VKJR2_FACE_API_DIR");
+  }
+  return dir;
+}
+
+std::filesystem::path face_api_manifest(const char* manifest) {
+  const auto path = face_api_model_dir() / manifest;
+  if (!std::filesystem::is_regular_file(path)) {
+    throw Error("face_api_manifest", "missing " + path.string(),
+                "run scripts/setup again (the model folder is incomplete)");
+  }
+  return path;
+}
+
+Tensor conv_weight_from_hwio(const Device& device, const HostTensor& w, const char* name) {
+  require_rank(w, 4, "conv_weight_from_hwio", name);
+  const std::int64_t kh = w.shape[0], kw = w.shape[1], ci = w.shape[2], co = w.shape[3];
+  std::vector<float> oihw(w.values.size());
+  for (std::int64_t y = 0; y < kh; ++y)
+    for (std::int64_t x = 0; x < kw; ++x)
+      for (std::int64_t i = 0; i < ci; ++i)
+        for (std::int64_t o = 0; o < co; ++o)
+          oihw[std::size_t(((o * ci + i) * kh + y) * kw + x)] =
+              w.values[std::size_t(((y * kw + x) * ci + i) * co + o)];
+  return Tensor::from(device, Shape{co, ci, kh, kw}, oihw);
+}
+
+Tensor depthwise_weight_from_hwio(const Device& device, const HostTensor& w, const char* name) {
+  require_rank(w, 4, "depthwise_weight_from_hwio", name);
+  const std::int64_t kh = w.shape[0], kw = w.shape[1], c = w.shape[2], m = w.shape[3];
+  std::vector<float> out(w.values.size());
+  for (std::int64_t y = 0; y < kh; ++y)
+    for (std::int64_t x = 0; x < kw; ++x)
+      for (std::int64_t i = 0; i < c; ++i)
+        for (std::int64_t j = 0; j < m; ++j)
+          out[std::size_t(((i * m + j) * kh + y) * kw + x)] =
+              w.values[std::size_t(((y * kw + x) * c + i) * m + j)];
+  return Tensor::from(device, Shape{c * m, 1, kh, kw}, out);
+}
+
+Tensor vector_from(const Device& device, const HostTensor& v, std::int64_t expected,
+                   const char* name) {
+  if (v.numel() != expected || std::int64_t(v.values.size()) != expected) {
+    throw InvalidArgument("vector_from",
+                          std::string("weight '") + name + "' has shape " + shape_str(v.shape) +
+                              ", expected " + std::to_string(expected) + " values",
+                          "the model file does not match this network: re-run scripts/setup");
+  }
+  return Tensor::from(device, Shape{expected}, v.values);
+}
+
+Tensor image_to_device(const Device& device, const HostTensor& img) {
+  std::vector<std::int64_t> s = img.shape;
+  if (s.size() == 4 && s[0] == 1) s.erase(s.begin());
+  if (s.size() != 3 || s[0] <= 0 || s[1] <= 0 || s[2] <= 0 ||
+      std::int64_t(img.values.size()) != s[0] * s[1] * s[2]) {
+    throw InvalidArgument("image_to_device", "image has shape " + shape_str(img.shape),
+                          "pass an H×W×C float image (e.g. a .npy of shape (h, w, 3))");
+  }
+  const std::int64_t h = s[0], w = s[1], c = s[2];
+  std::vector<float> chw(img.values.size());
+  for (std::int64_t y = 0; y < h; ++y)
+    for (std::int64_t x = 0; x < w; ++x)
+      for (std::int64_t k = 0; k < c; ++k)
+        chw[std::size_t((k * h + y) * w + x)] = img.values[std::size_t((y * w + x) * c + k)];
+  return Tensor::from(device, Shape{1, c, h, w}, chw);
+}
+
+HostTensor image_to_host(const Tensor& t) {
+  const Shape& s = t.shape();
+  if (s.rank() != 4) {
+    throw InvalidArgument("image_to_host", "tensor has shape " + s.str(), "pass an NCHW tensor");
+  }
+  const std::int64_t c = s[1], h = s[2], w = s[3];
+  const std::vector<float> all = t.download();
+  HostTensor out;
+  out.shape = {h, w, c};
+  out.values.resize(std::size_t(h * w * c));
+  for (std::int64_t y = 0; y < h; ++y)
+    for (std::int64_t x = 0; x < w; ++x)
+      for (std::int64_t k = 0; k < c; ++k)
+        out.values[std::size_t((y * w + x) * c + k)] = all[std::size_t((k * h + y) * w + x)];
+  return out;
+}
+
+}  // namespace vkjr2::nets

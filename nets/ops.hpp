@@ -1,0 +1,83 @@
+// Differentiable ops: each runs its forward kernel on the tape's stream and,
+// when the tape records and an input needs a gradient, records the backward
+// (nets/autograd.hpp). Shapes and semantics are those of the kernels
+// (kernels/*.hpp): NCHW images, f32.
+#pragma once
+
+#include <vkjr2/kernels/conv2d.hpp>
+#include <vkjr2/kernels/grid_sample.hpp>
+#include <vkjr2/kernels/layout.hpp>
+#include <vkjr2/kernels/pool.hpp>
+#include <vkjr2/kernels/resize.hpp>
+#include <vkjr2/nets/autograd.hpp>
+
+#include <span>
+#include <vector>
+
+namespace vkjr2::nets {
+
+// ---- elementwise (same shape) -------------------------------------------------
+Var add(Tape& t, const Var& a, const Var& b);
+Var sub(Tape& t, const Var& a, const Var& b);
+Var mul(Tape& t, const Var& a, const Var& b);
+// scale · x + shift (scalars).
+Var scale_shift(Tape& t, const Var& x, float scale, float shift = 0.f);
+Var exp(Tape& t, const Var& x);
+Var log(Tape& t, const Var& x);
+
+// ---- per-channel broadcasts over [N, C, spatial...] ---------------------------
+Var add_channel(Tape& t, const Var& x, const Var& v);  // x + v[c]
+Var mul_channel(Tape& t, const Var& x, const Var& v);  // x · v[c]
+// [C]: Σ over n and the spatial axes.
+Var sum_channels(Tape& t, const Var& x);
+// x · scale[c] + bias[c] (frozen batch norm / face-api's scale layer).
+Var channel_affine(Tape& t, const Var& x, const Var& scale, const Var& bias);
+
+// ---- activations ----------------------------------------------------------------
+Var relu(Tape& t, const Var& x);
+Var leaky_relu(Tape& t, const Var& x, float slope);
+Var prelu(Tape& t, const Var& x, const Var& slope);
+Var sigmoid(Tape& t, const Var& x);
+Var tanh(Tape& t, const Var& x);
+Var softmax(Tape& t, const Var& x);      // over the last axis
+Var log_softmax(Tape& t, const Var& x);  // over the last axis
+
+// ---- layers' compute ------------------------------------------------------------
+// act(conv(x, weight) + bias); weight OIHW; bias may be undefined.
+Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
+           const kernels::Conv2dParams& p);
+// x [M, K] · weight [K, N] (+ bias [N] when defined).
+Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias);
+Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p);
+Var avg_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p, bool count_include_pad = false);
+Var global_avg_pool(Tape& t, const Var& x);  // [N, C, 1, 1]
+Var resize(Tape& t, const Var& x, kernels::ResizeMode mode, std::int64_t out_h, std::int64_t out_w);
+Var pad(Tape& t, const Var& x, const kernels::Pad2d& p, float value = 0.f);
+Var concat_channels(Tape& t, std::span<const Var> xs);
+Var slice(Tape& t, const Var& x, const kernels::SliceStart& start, const Shape& shape);
+// Same memory under another shape; the gradient is reshaped back.
+Var reshape(Tape& t, const Var& x, const Shape& shape);
+
+// ---- geometry --------------------------------------------------------------------
+Var grid_sample(Tape& t, const Var& input, const Var& grid, kernels::GridSampleOptions o = {});
+// grid [N, H, W, 2] from theta [N, 2, 3].
+Var affine_grid(Tape& t, const Var& theta, std::int64_t height, std::int64_t width,
+                bool align_corners);
+
+// ---- reductions (outputs of one element, or one per row of the last axis) ----------
+Var sum_all(Tape& t, const Var& x);
+Var mean_all(Tape& t, const Var& x);
+Var sum_rows(Tape& t, const Var& x);     // [rows]
+Var mean_rows(Tape& t, const Var& x);    // [rows]
+Var l2norm_rows(Tape& t, const Var& x);  // [rows]
+
+// ---- losses (mean over elements, one-element output) ------------------------------
+Var l1_loss(Tape& t, const Var& pred, const Var& target);
+Var mse_loss(Tape& t, const Var& pred, const Var& target);
+Var charbonnier_loss(Tape& t, const Var& pred, const Var& target, float eps = 1e-3f);
+// Per row of a, b [rows, K]: cosine similarity, [rows].
+Var cosine_similarity(Tape& t, const Var& a, const Var& b);
+// logits [rows, K], labels i32 [rows] (not differentiated).
+Var cross_entropy(Tape& t, const Var& logits, const Tensor& labels);
+
+}  // namespace vkjr2::nets
