@@ -6,5 +6,6 @@
 namespace vkjr2::cli {
 
 void add_devices(CLI::App& app);  // devices.cpp
+void add_faces(CLI::App& app);    // faces.cpp: detect, embed, verify, identify
 
 }  // namespace vkjr2::cli

@@ -31,6 +31,7 @@ int run(int argc, char** argv) {
       "Exit codes: 0 success, 1 runtime error (message on stderr), 2 bad command line, "
       "3 no Vulkan device.");
   vkjr2::cli::add_devices(app);
+  vkjr2::cli::add_faces(app);
   if (argc > 1 && argv[1][0] != '-' && !has_subcommand(app, argv[1])) {
     std::fprintf(stderr, "vkjr2: error: unknown command '%s'. Run `vkjr2 --help` for the list.\n",
                  argv[1]);
