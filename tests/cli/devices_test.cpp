@@ -1,28 +1,16 @@
 // The vkjr2 binary, run as a user would.
 #include <gtest/gtest.h>
-#include <sys/wait.h>
 
-#include <array>
-#include <cstdio>
 #include <string>
+
+#include "support/run_cli.hpp"
 
 namespace {
 
-struct Result {
-  int code;
-  std::string output;
-};
+using Result = vkjr2::test::CliResult;
 
 Result run(const std::string& args, const std::string& env = "") {
-  const std::string cmd = env + " " + std::string(VKJR2_CLI_PATH) + " " + args + " 2>&1";
-  Result r{-1, {}};
-  FILE* pipe = popen(cmd.c_str(), "r");
-  if (!pipe) return r;
-  std::array<char, 4096> buf{};
-  while (fgets(buf.data(), int(buf.size()), pipe)) r.output += buf.data();
-  const int status = pclose(pipe);
-  r.code = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  return r;
+  return vkjr2::test::run_cli(args, env);
 }
 
 TEST(Cli, HelpListsCommandsAndEnvironment) {
