@@ -1,4 +1,5 @@
 #include <vkjr2/nets/face_common.hpp>
+#include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
 
 #include <cstdlib>
@@ -121,6 +122,43 @@ HostTensor image_to_host(const Tensor& t) {
       for (std::int64_t k = 0; k < c; ++k)
         out.values[std::size_t((y * w + x) * c + k)] = all[std::size_t((k * h + y) * w + x)];
   return out;
+}
+
+WeightReader::WeightReader(const TfjsWeights& weights, std::string model, std::string manifest)
+    : weights_(weights), model_(std::move(model)), manifest_(std::move(manifest)) {}
+
+void WeightReader::fail(const std::string& name, const std::string& problem) const {
+  throw InvalidArgument(model_, "weight '" + name + "' in " + weights_.source() + " " + problem,
+                        "use face-api 1.7.15's " + manifest_ + " (re-run scripts/setup)");
+}
+
+const HostTensor& WeightReader::take(const std::string& name,
+                                     const std::vector<std::int64_t>& shape) {
+  const HostTensor& t = weights_.at(name);  // throws naming the missing weight
+  if (t.shape != shape) {
+    fail(name, "has shape " + shape_str(t.shape) + ", expected " + shape_str(shape));
+  }
+  if (!used_.insert(name).second) fail(name, "is used twice");
+  return t;
+}
+
+Tensor WeightReader::conv(const Device& d, const std::string& name,
+                          const std::vector<std::int64_t>& shape) {
+  return conv_weight_from_hwio(d, take(name, shape), name.c_str());
+}
+
+Tensor WeightReader::depthwise(const Device& d, const std::string& name, std::int64_t channels) {
+  return depthwise_weight_from_hwio(d, take(name, {3, 3, channels, 1}), name.c_str());
+}
+
+Tensor WeightReader::vec(const Device& d, const std::string& name, std::int64_t n) {
+  return vector_from(d, take(name, {n}), n, name.c_str());
+}
+
+void WeightReader::finish() const {
+  for (const auto& [name, tensor] : weights_.entries()) {
+    if (used_.count(name) == 0) fail(name, "is not part of " + model_);
+  }
 }
 
 }  // namespace vkjr2::nets

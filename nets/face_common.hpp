@@ -6,8 +6,13 @@
 #include <vkjr2/runtime/tensor.hpp>
 
 #include <filesystem>
+#include <set>
+#include <string>
+#include <vector>
 
 namespace vkjr2::nets {
+
+class TfjsWeights;
 
 // Where face-api's model/ folder is: $VKJR2_FACE_API_DIR, else
 // ${VKJR2_CACHE_DIR:-$HOME/.cache/vkjr2}/face-api-1.7.15/model. Throws a
@@ -28,5 +33,29 @@ Tensor vector_from(const Device& device, const HostTensor& v, std::int64_t expec
 // HWC (or 1×HWC) float image → device tensor [1, C, H, W]; and back.
 Tensor image_to_device(const Device& device, const HostTensor& hwc);
 HostTensor image_to_host(const Tensor& nchw);  // first image of the batch, HWC
+
+// Takes a model's weights from its TF.js manifest by name, checking each
+// shape and that none is used twice; finish() rejects weights the network
+// left over (a manifest of another model). Errors name the weight, the file
+// and the model.
+class WeightReader {
+ public:
+  WeightReader(const TfjsWeights& weights, std::string model, std::string manifest);
+  const HostTensor& take(const std::string& name, const std::vector<std::int64_t>& shape);
+  Tensor conv(const Device& d, const std::string& name, const std::vector<std::int64_t>& shape);
+  Tensor depthwise(const Device& d, const std::string& name, std::int64_t channels);
+  Tensor vec(const Device& d, const std::string& name, std::int64_t n);
+  void finish() const;
+
+ private:
+  [[noreturn]] void fail(const std::string& name, const std::string& problem) const;
+  const TfjsWeights& weights_;
+  std::string model_, manifest_;
+  std::set<std::string> used_;
+};
+
+// JS Math.round of diff/2 for the non-negative differences padToSquare
+// splits: ties go up (the larger half is padded after the image).
+inline std::int64_t js_round_half(std::int64_t diff) { return (diff + 1) / 2; }
 
 }  // namespace vkjr2::nets

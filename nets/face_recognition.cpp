@@ -1,0 +1,317 @@
+#include <vkjr2/nets/face_recognition.hpp>
+#include <vkjr2/nets/tfjs_weights.hpp>
+#include <vkjr2/runtime/error.hpp>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <set>
+#include <string>
+
+namespace vkjr2::nets {
+namespace {
+
+namespace k = kernels;
+
+constexpr std::array<float, 3> kMeanRgb = {122.782f, 117.001f, 104.298f};
+
+void require_image(const Var& x, const char* op, const char* name) {
+  if (!x.defined() || x.shape().rank() != 4 || x.numel() == 0) {
+    throw InvalidArgument(op,
+                          std::string(name) + " has shape " +
+                              (x.defined() ? x.shape().str() : std::string("(undefined)")) +
+                              ", expected a non-empty NCHW image [N, C, H, W]",
+                          "pass a 4-D tensor (image_to_device gives [1, C, H, W])");
+  }
+}
+
+}  // namespace
+
+// ---- the dlib box ------------------------------------------------------------------
+
+FaceBox face_api_dlib_rect(std::span<const double> lm, int image_w, int image_h) {
+  if (lm.size() != 136) {
+    throw InvalidArgument("face_api_chip_box",
+                          "landmarks68_xy holds " + std::to_string(lm.size()) +
+                              " values, expected 136 (68 points × x, y)",
+                          "pass FaceLandmark68Net's 68 points in image pixels");
+  }
+  for (std::size_t i = 0; i < lm.size(); ++i) {
+    if (!std::isfinite(lm[i])) {
+      throw InvalidArgument("face_api_chip_box",
+                            "landmark " + std::to_string(i / 2) + " has a non-finite " +
+                                (i % 2 == 0 ? "x" : "y") + " coordinate",
+                            "check the landmark net's input and output for NaN/Inf");
+    }
+  }
+  if (image_w <= 0 || image_h <= 0) {
+    throw InvalidArgument("face_api_chip_box",
+                          "image size " + std::to_string(image_w) + "×" + std::to_string(image_h) +
+                              " is not positive",
+                          "pass the width and height of the frame the landmarks belong to");
+  }
+  // getCenterPoint: Σ from (0, 0) in order, then divided by the count.
+  const auto centre = [&](std::size_t first, std::size_t last) {
+    double sx = 0, sy = 0;
+    for (std::size_t i = first; i <= last; ++i) {
+      sx += lm[2 * i];
+      sy += lm[2 * i + 1];
+    }
+    const auto n = double(last - first + 1);
+    return std::array<double, 2>{sx / n, sy / n};
+  };
+  const std::array<std::array<double, 2>, 3> centres = {centre(36, 41), centre(42, 47),
+                                                        centre(48, 67)};
+  const auto& mouth = centres[2];
+  const auto dist_to_mouth = [&](const std::array<double, 2>& p) {
+    const double dx = mouth[0] - p[0], dy = mouth[1] - p[1];
+    return std::sqrt(dx * dx + dy * dy);
+  };
+  const double eye_to_mouth = (dist_to_mouth(centres[0]) + dist_to_mouth(centres[1])) / 2;
+  constexpr double kRelX = 0.5, kRelY = 0.43, kRelScale = 0.45;  // FaceLandmarks.ts
+  const double size = std::floor(eye_to_mouth / kRelScale);
+  double rx = 0, ry = 0;
+  for (const auto& c : centres) {
+    rx += c[0];
+    ry += c[1];
+  }
+  rx /= 3;
+  ry /= 3;
+  const double x = std::floor(std::max(0.0, rx - kRelX * size));
+  const double y = std::floor(std::max(0.0, ry - kRelY * size));
+  return FaceBox{x, y, std::min(size, double(image_w) + x), std::min(size, double(image_h) + y)};
+}
+
+FaceBox clip_at_image_borders(const FaceBox& b, int image_w, int image_h) {
+  const double x = std::max(b.x, 0.0), y = std::max(b.y, 0.0);
+  const double w = std::min(b.x + b.width - x, double(image_w) - x);
+  const double h = std::min(b.y + b.height - y, double(image_h) - y);
+  return FaceBox{std::floor(x), std::floor(y), std::floor(w), std::floor(h)};
+}
+
+FaceBox face_api_chip_box(std::span<const double> lm, int image_w, int image_h) {
+  return clip_at_image_borders(face_api_dlib_rect(lm, image_w, image_h), image_w, image_h);
+}
+
+FaceBox face_api_chip_box(std::span<const float> lm, int image_w, int image_h) {
+  const std::vector<double> d(lm.begin(), lm.end());
+  return face_api_chip_box(std::span<const double>(d), image_w, image_h);
+}
+
+// ---- crop, pad, resize ------------------------------------------------------------
+
+Var extract_face(Tape& t, const Var& image, const FaceBox& box) {
+  require_image(image, "extract_face", "image");
+  const Shape& s = image.shape();
+  if (!std::isfinite(box.x) || !std::isfinite(box.y) || !std::isfinite(box.width) ||
+      !std::isfinite(box.height)) {
+    throw InvalidArgument("extract_face", "the face box has a non-finite field",
+                          "pass the box from face_api_chip_box");
+  }
+  const FaceBox c = clip_at_image_borders(box, int(s[3]), int(s[2]));
+  if (c.width <= 0 || c.height <= 0) {
+    throw InvalidArgument("extract_face",
+                          "face box (x " + std::to_string(box.x) + ", y " + std::to_string(box.y) +
+                              ", " + std::to_string(box.width) + "×" + std::to_string(box.height) +
+                              ") lies outside the " + std::to_string(s[3]) + "×" +
+                              std::to_string(s[2]) + " image",
+                          "pass a box that overlaps the image (face-api drops such faces)");
+  }
+  return slice(t, image, k::SliceStart{0, std::int64_t(c.y), std::int64_t(c.x)},
+               Shape{s[0], s[1], std::int64_t(c.height), std::int64_t(c.width)});
+}
+
+Var to_recognition_input(Tape& t, const Var& chip) {
+  require_image(chip, "to_recognition_input", "chip");
+  const std::int64_t h = chip.shape()[2], w = chip.shape()[3];
+  Var square = chip;
+  if (h != w) {
+    const std::int64_t diff = std::abs(h - w);
+    const auto after = std::int32_t(js_round_half(diff));
+    const auto before = std::int32_t(diff - after);
+    k::Pad2d p;
+    if (h > w) {
+      p.left = before;
+      p.right = after;
+    } else {
+      p.top = before;
+      p.bottom = after;
+    }
+    square = pad(t, chip, p, 0.f);
+  }
+  const std::int64_t side = std::max(h, w);
+  if (side == kRecognitionInputSize) return square;
+  return resize(t, square, k::ResizeMode::bilinear_legacy, kRecognitionInputSize,
+                kRecognitionInputSize);
+}
+
+Tensor to_recognition_input(Stream& stream, const Tensor& chip) {
+  Tape tape(stream, /*recording=*/false);
+  return to_recognition_input(tape, Var(chip)).value();
+}
+
+// ---- the network -------------------------------------------------------------------
+
+// conv + bias, then the scale layer x·w + b, then optionally ReLU (convLayer.ts).
+class FaceRecognitionNet::ConvLayer : public Module {
+ public:
+  ConvLayer(const Device& device, WeightReader& r, const std::string& prefix, int kernel,
+            std::int64_t cin, std::int64_t cout, bool down)
+      : down_(down) {
+    const std::string tf = prefix + "/";
+    filters_ = register_parameter(
+        "conv.filters",
+        conv_weight_from_hwio(device, r.take(tf + "conv/filters", {kernel, kernel, cin, cout}),
+                              (tf + "conv/filters").c_str()));
+    bias_ = register_parameter("conv.bias", vector_from(device, r.take(tf + "conv/bias", {cout}),
+                                                        cout, (tf + "conv/bias").c_str()));
+    scale_ = register_parameter("scale.weights",
+                                vector_from(device, r.take(tf + "scale/weights", {cout}), cout,
+                                            (tf + "scale/weights").c_str()));
+    shift_ =
+        register_parameter("scale.biases", vector_from(device, r.take(tf + "scale/biases", {cout}),
+                                                       cout, (tf + "scale/biases").c_str()));
+    kernel_ = kernel;
+  }
+
+  Var forward(Tape& t, const Var& x, bool with_relu) const {
+    k::Conv2dParams p;
+    if (down_) {  // convDown: stride 2, 'valid'
+      p.stride_y = p.stride_x = 2;
+    } else {  // conv / convNoRelu: stride 1, 'same'
+      p.pad = k::same_padding(x.shape()[2], x.shape()[3], kernel_, kernel_, 1, 1);
+    }
+    Var y = conv2d(t, x, filters_, bias_, p);
+    y = channel_affine(t, y, scale_, shift_);
+    return with_relu ? relu(t, y) : y;
+  }
+
+ private:
+  Var filters_, bias_, scale_, shift_;
+  int kernel_ = 3;
+  bool down_;
+};
+
+// residual / residualDown (residualLayer.ts).
+class FaceRecognitionNet::Residual : public Module {
+ public:
+  Residual(const Device& device, WeightReader& r, const std::string& name, std::int64_t cin,
+           std::int64_t cout, bool down)
+      : down_(down) {
+    conv1_ = &register_module(
+        "conv1", std::make_unique<ConvLayer>(device, r, name + "/conv1", 3, cin, cout, down));
+    conv2_ = &register_module(
+        "conv2", std::make_unique<ConvLayer>(device, r, name + "/conv2", 3, cout, cout, false));
+  }
+
+  Var forward(Tape& t, const Var& x) const {
+    Var out = conv1_->forward(t, x, true);
+    out = conv2_->forward(t, out, false);
+    if (!down_) return relu(t, add(t, out, x));
+
+    Var pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
+    const Shape& ps = pooled.shape();
+    if (ps[2] != out.shape()[2] || ps[3] != out.shape()[3]) {
+      // One zero row at the bottom, then one zero column at the right.
+      out = pad(t, out, k::Pad2d{0, 1, 0, 1}, 0.f);
+    }
+    if (ps[1] != out.shape()[1]) {
+      // Channels doubled by appending zeros to the shortcut.
+      Tensor zeros = Tensor::empty(x.value().device(), ps);
+      t.stream().fill(zeros, 0.f);
+      const std::array<Var, 2> parts = {pooled, Var(zeros)};
+      pooled = concat_channels(t, parts);
+    }
+    if (!(pooled.shape() == out.shape())) {
+      throw Error("FaceRecognitionNet",
+                  "residual shortcut " + pooled.shape().str() + " does not match branch " +
+                      out.shape().str(),
+                  "the input must be 150×150 (use to_recognition_input)");
+    }
+    return relu(t, add(t, pooled, out));
+  }
+
+ private:
+  ConvLayer* conv1_;
+  ConvLayer* conv2_;
+  bool down_;
+};
+
+std::unique_ptr<FaceRecognitionNet> FaceRecognitionNet::load(
+    const Device& device, const std::filesystem::path& manifest) {
+  return std::make_unique<FaceRecognitionNet>(device, load_tfjs_weights(manifest));
+}
+
+FaceRecognitionNet::FaceRecognitionNet(const Device& device, const TfjsWeights& weights) {
+  WeightReader r(weights, "FaceRecognitionNet", "face_recognition_model");
+  conv32_down_ = &register_module(
+      "conv32_down", std::make_unique<ConvLayer>(device, r, "conv32_down", 7, 3, 32, true));
+  struct BlockSpec {
+    const char* name;
+    std::int64_t cin, cout;
+    bool down;
+  };
+  constexpr std::array<BlockSpec, 14> specs = {{
+      {"conv32_1", 32, 32, false},
+      {"conv32_2", 32, 32, false},
+      {"conv32_3", 32, 32, false},
+      {"conv64_down", 32, 64, true},
+      {"conv64_1", 64, 64, false},
+      {"conv64_2", 64, 64, false},
+      {"conv64_3", 64, 64, false},
+      {"conv128_down", 64, 128, true},
+      {"conv128_1", 128, 128, false},
+      {"conv128_2", 128, 128, false},
+      {"conv256_down", 128, 256, true},
+      {"conv256_1", 256, 256, false},
+      {"conv256_2", 256, 256, false},
+      {"conv256_down_out", 256, 256, true},
+  }};
+  for (const BlockSpec& b : specs) {
+    blocks_.push_back(&register_module(
+        b.name, std::make_unique<Residual>(device, r, b.name, b.cin, b.cout, b.down)));
+  }
+  const HostTensor& fc = r.take("fc", {256, kDescriptorSize});
+  fc_ = register_parameter("fc", Tensor::from(device, Shape{256, kDescriptorSize}, fc.values));
+
+  r.finish();
+
+  std::vector<float> scale(3, 1.f / 255.f), shift(3);
+  for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
+  input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
+  input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+}
+
+FaceRecognitionNet::~FaceRecognitionNet() = default;
+
+void FaceRecognitionNet::set_frozen(bool frozen) const {
+  for (const Var& p : parameters()) p.set_requires_grad(!frozen);
+}
+
+Tensor FaceRecognitionNet::describe(Stream& stream, const Tensor& rgb) const {
+  Tape tape(stream, /*recording=*/false);
+  return forward(tape, Var(rgb)).value();
+}
+
+Var FaceRecognitionNet::forward(Tape& t, const Var& rgb) const {
+  const bool ok = rgb.defined() && rgb.shape().rank() == 4 && rgb.shape()[0] >= 1 &&
+                  rgb.shape()[1] == 3 && rgb.shape()[2] == kRecognitionInputSize &&
+                  rgb.shape()[3] == kRecognitionInputSize;
+  if (!ok) {
+    throw InvalidArgument(
+        "FaceRecognitionNet::forward",
+        "rgb has shape " + (rgb.defined() ? rgb.shape().str() : std::string("(undefined)")) +
+            ", expected [N, 3, 150, 150] (RGB 0..255)",
+        "crop the face and resize it with to_recognition_input (pads to a square, then 150×150)");
+  }
+  // normalize(x, meanRgb) / 255 (FaceRecognitionNet.ts).
+  Var x = channel_affine(t, rgb, input_scale_, input_shift_);
+  x = conv32_down_->forward(t, x, true);
+  x = max_pool2d(t, x, k::pool_valid(3, 3, 2, 2));
+  for (const Residual* block : blocks_) x = block->forward(t, x);
+  x = global_avg_pool(t, x);
+  x = reshape(t, x, Shape{x.shape()[0], x.shape()[1]});
+  return linear(t, x, fc_, Var());
+}
+
+}  // namespace vkjr2::nets
