@@ -98,7 +98,9 @@ void draw_rect(Image& img, const nets::FaceBox& b, const std::array<float, 3>& r
   const int h = int(img.shape[0]), w = int(img.shape[1]);
   const auto put = [&](int x, int y) {
     if (x < 0 || y < 0 || x >= w || y >= h) return;
-    for (int c = 0; c < 3; ++c) img.values[std::size_t((y * w + x) * 3 + c)] = rgb[std::size_t(c)];
+    for (int c = 0; c < 3; ++c)
+      img.values[(std::size_t(y) * std::size_t(w) + std::size_t(x)) * 3 + std::size_t(c)] =
+          rgb[std::size_t(c)];
   };
   const int x0 = int(std::lround(b.x)), y0 = int(std::lround(b.y));
   const int x1 = int(std::lround(b.x + b.width)), y1 = int(std::lround(b.y + b.height));

@@ -29,12 +29,12 @@ std::array<Point2, 5> five_points(std::span<const float> lm) {
                             "check the landmark detector's input");
     }
   }
-  const auto pt = [&](int i) { return Point2{lm[std::size_t(2 * i)], lm[std::size_t(2 * i + 1)]}; };
+  const auto pt = [&](int i) { return Point2{lm[2 * std::size_t(i)], lm[2 * std::size_t(i) + 1]}; };
   const auto mean = [&](int from, int to) {
     Point2 m;
     for (int i = from; i <= to; ++i) {
-      m.x += lm[std::size_t(2 * i)];
-      m.y += lm[std::size_t(2 * i + 1)];
+      m.x += lm[2 * std::size_t(i)];
+      m.y += lm[2 * std::size_t(i) + 1];
     }
     const double n = to - from + 1;
     return Point2{m.x / n, m.y / n};

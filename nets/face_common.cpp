@@ -45,7 +45,7 @@ std::filesystem::path face_api_model_dir() {
 }
 
 std::filesystem::path face_api_manifest(const char* manifest) {
-  const auto path = face_api_model_dir() / manifest;
+  auto path = face_api_model_dir() / manifest;
   if (!std::filesystem::is_regular_file(path)) {
     throw Error("face_api_manifest", "missing " + path.string(),
                 "run scripts/setup again (the model folder is incomplete)");

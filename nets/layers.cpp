@@ -125,7 +125,7 @@ Var BatchNorm2d::forward(Tape& t, const Var& x) const {
   const Var centred = add_channel(t, x, scale_shift(t, mean, -1.f));
   const Var var = scale_shift(t, sum_channels(t, mul(t, centred, centred)), inv_m);
   const Var inv = exp(t, scale_shift(t, log(t, scale_shift(t, var, 1.f, eps)), -0.5f));
-  const Var y = add_channel(t, mul_channel(t, mul_channel(t, centred, inv), gamma), beta);
+  Var y = add_channel(t, mul_channel(t, mul_channel(t, centred, inv), gamma), beta);
 
   // Running statistics (no gradient): r = (1 − momentum)·r + momentum·batch,
   // the variance unbiased by m / (m − 1).

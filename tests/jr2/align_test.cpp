@@ -12,6 +12,9 @@
 namespace vkjr2::jr2 {
 namespace {
 
+// Flat index of an int index expression (test shapes are small).
+std::size_t flat(std::int64_t i) { return static_cast<std::size_t>(i); }
+
 TEST(Jr2Align, FitSimilarityRecoversAKnownTransform) {
   const double angle = 0.3, scale = 1.7;
   const Similarity truth{scale * std::cos(angle), scale * std::sin(angle), 12.5, -3.25};
@@ -33,8 +36,8 @@ TEST(Jr2Align, FitSimilarityRecoversAKnownTransform) {
 TEST(Jr2Align, FivePointsFromSixtyEightLandmarks) {
   std::vector<float> lm(136);
   for (int i = 0; i < 68; ++i) {
-    lm[std::size_t(2 * i)] = float(i);
-    lm[std::size_t(2 * i + 1)] = float(100 + i);
+    lm[flat(2 * i)] = float(i);
+    lm[flat(2 * i + 1)] = float(100 + i);
   }
   const auto p = five_points(lm);
   EXPECT_DOUBLE_EQ(p[0].x, 38.5);  // mean of 36..41
@@ -58,14 +61,14 @@ float sample(const std::vector<float>& img, int c, int h, int w, double x, doubl
     for (int dx = 0; dx < 2; ++dx) {
       const int xx = x0 + dx, yy = y0 + dy;
       if (xx < 0 || yy < 0 || xx >= w || yy >= h) continue;
-      v += (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * img[std::size_t((c * h + yy) * w + xx)];
+      v += (dx ? fx : 1 - fx) * (dy ? fy : 1 - fy) * img[flat((c * h + yy) * w + xx)];
     }
   return float(v);
 }
 
 TEST(Jr2Align, CropSamplesTheImageAtTheInverseTransform) {
   const int h = 37, w = 53, size = 24;
-  const std::vector<float> img = test::random_floats(std::size_t(3 * h * w), 9, 0.f, 255.f);
+  const std::vector<float> img = test::random_floats(flat(3 * h * w), 9, 0.f, 255.f);
   const Similarity to_crop{0.6 * std::cos(0.2), 0.6 * std::sin(0.2), -4.0, 2.5};
   Stream s(test::device());
   nets::Tape t(s, false);
@@ -86,11 +89,11 @@ TEST(Jr2Align, CropSamplesTheImageAtTheInverseTransform) {
 
 TEST(Jr2Align, CropIsDifferentiableWithRespectToThePixels) {
   const int h = 20, w = 18, size = 9;
-  const std::vector<float> img = test::random_floats(std::size_t(3 * h * w), 10);
+  const std::vector<float> img = test::random_floats(flat(3 * h * w), 10);
   std::vector<float> lm(136);
   for (int i = 0; i < 136; ++i) lm[std::size_t(i)] = float(3 + (i * 7) % 13);
   const Device& d = test::device();
-  const std::vector<float> wts = test::random_floats(std::size_t(3 * size * size), 11);
+  const std::vector<float> wts = test::random_floats(flat(3 * size * size), 11);
   Stream s(d);
   nets::Tape t(s);
   const nets::Var x(Tensor::from(d, Shape{1, 3, h, w}, img), true);

@@ -15,6 +15,9 @@
 namespace vkjr2::jr2 {
 namespace {
 
+// Flat index of an int index expression (test shapes are small).
+std::size_t flat(std::int64_t i) { return static_cast<std::size_t>(i); }
+
 namespace fs = std::filesystem;
 using nets::HostTensor;
 
@@ -30,28 +33,27 @@ HostTensor gaussian_blur(const HostTensor& img, double sigma) {
   const int r = int(std::ceil(3 * sigma));
   std::vector<double> k(std::size_t(2 * r + 1));
   double sum = 0;
-  for (int i = -r; i <= r; ++i)
-    sum += k[std::size_t(i + r)] = std::exp(-i * i / (2 * sigma * sigma));
+  for (int i = -r; i <= r; ++i) sum += k[flat(i + r)] = std::exp(-i * i / (2 * sigma * sigma));
   for (double& v : k) v /= sum;
   HostTensor tmp = img, out = img;
   const auto at = [&](const HostTensor& t, int y, int x, int c) {
     y = std::clamp(y, 0, h - 1);
     x = std::clamp(x, 0, w - 1);
-    return double(t.values[std::size_t((y * w + x) * 3 + c)]);
+    return double(t.values[flat((y * w + x) * 3 + c)]);
   };
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) {
         double s = 0;
-        for (int i = -r; i <= r; ++i) s += k[std::size_t(i + r)] * at(img, y, x + i, c);
-        tmp.values[std::size_t((y * w + x) * 3 + c)] = float(s);
+        for (int i = -r; i <= r; ++i) s += k[flat(i + r)] * at(img, y, x + i, c);
+        tmp.values[flat((y * w + x) * 3 + c)] = float(s);
       }
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       for (int c = 0; c < 3; ++c) {
         double s = 0;
-        for (int i = -r; i <= r; ++i) s += k[std::size_t(i + r)] * at(tmp, y + i, x, c);
-        out.values[std::size_t((y * w + x) * 3 + c)] = float(s);
+        for (int i = -r; i <= r; ++i) s += k[flat(i + r)] * at(tmp, y + i, x, c);
+        out.values[flat((y * w + x) * 3 + c)] = float(s);
       }
   return out;
 }

@@ -12,6 +12,9 @@
 namespace vkjr2::nets {
 namespace {
 
+// Flat index of an int index expression (test shapes are small).
+std::size_t flat(std::int64_t i) { return static_cast<std::size_t>(i); }
+
 TEST(NetsLayers, BatchNormTrainingMatchesReferenceAndUpdatesRunningStats) {
   const Device& d = test::device();
   const Shape s{3, 2, 4, 5};
@@ -29,15 +32,15 @@ TEST(NetsLayers, BatchNormTrainingMatchesReferenceAndUpdatesRunningStats) {
   for (int c = 0; c < 2; ++c) {
     double mean = 0, var = 0;
     for (int n = 0; n < 3; ++n)
-      for (int i = 0; i < 20; ++i) mean += x[std::size_t((n * 2 + c) * 20 + i)];
+      for (int i = 0; i < 20; ++i) mean += x[flat((n * 2 + c) * 20 + i)];
     mean /= m;
     for (int n = 0; n < 3; ++n)
-      for (int i = 0; i < 20; ++i) var += std::pow(x[std::size_t((n * 2 + c) * 20 + i)] - mean, 2);
+      for (int i = 0; i < 20; ++i) var += std::pow(x[flat((n * 2 + c) * 20 + i)] - mean, 2);
     var /= m;
     const double g = c == 0 ? 1.5 : -0.5, b = c == 0 ? 0.25 : 1.0;
     for (int n = 0; n < 3; ++n)
       for (int i = 0; i < 20; ++i) {
-        const auto k = std::size_t((n * 2 + c) * 20 + i);
+        const auto k = flat((n * 2 + c) * 20 + i);
         want[k] = float(g * (x[k] - mean) / std::sqrt(var + 1e-5) + b);
       }
     want_rm[std::size_t(c)] = float(0.1 * mean);

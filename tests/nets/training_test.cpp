@@ -17,6 +17,9 @@
 namespace vkjr2::nets {
 namespace {
 
+// Flat index of an int index expression (test shapes are small).
+std::size_t flat(std::int64_t i) { return static_cast<std::size_t>(i); }
+
 // ---- the MLP: y = sin(2 x0) + x1² from 2-D inputs -----------------------------------
 
 class Mlp : public Module {
@@ -91,7 +94,7 @@ Images bars_batch(const Device& d, std::uint32_t seed) {
       for (int c = 0; c < s; ++c) {
         const bool on = labels[std::size_t(i)] == 0 ? r == line : c == line;
         const float noise = float(rng() % 1001) / 1000.f - 0.5f;
-        x[std::size_t((i * s + r) * s + c)] = (on ? 1.f : 0.f) + 0.3f * noise;
+        x[flat((i * s + r) * s + c)] = (on ? 1.f : 0.f) + 0.3f * noise;
       }
     }
   }
