@@ -146,6 +146,8 @@ Profile profile_of(const Params& p) {
 
 }  // namespace
 
+double cn2_at(const Params& params, double z_m) { return profile_of(params).at(z_m); }
+
 double channel_wavelength_m(const Params& params, int channel) {
   const auto& w = params.optics.wavelengths_m;
   if (channel < 0 || channel >= params.image.channels)

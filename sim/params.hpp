@@ -131,6 +131,11 @@ struct PathIntegrals {
 };
 PathIntegrals path_integrals(const Params& params);
 
+// Cn²(z) in m^(−2/3) at distance z_m from the scene, as derive() sees it:
+// the profile (linear between samples, constant beyond), the constant Cn², or
+// the uniform Cn² equivalent to a given r0.
+double cn2_at(const Params& params, double z_m);
+
 // Named presets at L = 1 km: "weak", "moderate", "strong" (D/r0 ≈ 1.5, 3, 6 at
 // 525 nm; numbers in docs/sim.md).
 Params preset(std::string_view name);
