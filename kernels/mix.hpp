@@ -12,7 +12,7 @@
 namespace vkjr2::kernels {
 
 struct MixPlanesParams {
-  std::int64_t batch = 1;  // B
+  std::int64_t batch = 1;             // B
   std::int64_t out_h = 0, out_w = 0;  // the top-left out_h × out_w corner of each plane
   float scale = 1.f;
   // first2 output: out[..., 0] · first2_scale[0], out[..., 1] · first2_scale[1].

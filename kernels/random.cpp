@@ -20,8 +20,8 @@ static_assert(sizeof(RandnPush) <= 128);
 
 enum Mode : std::uint32_t { kFill = 0, kAr1 = 1, kSensor = 2 };
 
-void dispatch(Stream& stream, const Tensor& x, const Tensor& y, std::uint32_t n, Mode mode,
-              float a, float b, std::uint64_t seed, std::uint32_t stream_id) {
+void dispatch(Stream& stream, const Tensor& x, const Tensor& y, std::uint32_t n, Mode mode, float a,
+              float b, std::uint64_t seed, std::uint32_t stream_id) {
   static const KernelDef kRandn{
       "randn", {BindingKind::storage, BindingKind::storage}, sizeof(RandnPush)};
   const RandnPush push{n,
@@ -57,8 +57,8 @@ void randn_ar1(Stream& stream, const Tensor& x, float rho, std::uint64_t seed,
                std::uint32_t stream_id) {
   const std::uint32_t n = require_f32(x, "randn_ar1", "x");
   if (!(rho >= 0.f && rho <= 1.f)) {
-    throw InvalidArgument("randn_ar1", "rho must be in [0, 1] (a lag-1 correlation), got " +
-                                           std::to_string(rho));
+    throw InvalidArgument(
+        "randn_ar1", "rho must be in [0, 1] (a lag-1 correlation), got " + std::to_string(rho));
   }
   const float innovation = std::sqrt(std::max(0.f, 1.f - rho * rho));
   dispatch(stream, x, x, n, kAr1, rho, innovation, seed, stream_id);
@@ -70,13 +70,13 @@ void sensor_noise(Stream& stream, const Tensor& x, const Tensor& y, float shot, 
   require_f32(y, "sensor_noise", "y");
   require_same_numel(x, y, "sensor_noise", "x", "y");
   if (!(shot >= 0.f) || !std::isfinite(shot)) {
-    throw InvalidArgument("sensor_noise",
-                          "shot (variance per unit of signal) must be finite and >= 0, got " +
-                              std::to_string(shot));
+    throw InvalidArgument(
+        "sensor_noise",
+        "shot (variance per unit of signal) must be finite and >= 0, got " + std::to_string(shot));
   }
   if (!(read_std >= 0.f) || !std::isfinite(read_std)) {
-    throw InvalidArgument("sensor_noise", "read_std must be finite and >= 0, got " +
-                                              std::to_string(read_std));
+    throw InvalidArgument("sensor_noise",
+                          "read_std must be finite and >= 0, got " + std::to_string(read_std));
   }
   dispatch(stream, x, y, n, kSensor, shot, read_std * read_std, seed, stream_id);
 }

@@ -14,7 +14,7 @@ namespace vkjr2::sim {
 namespace {
 
 constexpr double kPi = std::numbers::pi;
-constexpr int kMaxOrder = 20;       // n ≤ 20 ⇔ j ≤ 231 (kMaxZernikeModes)
+constexpr int kMaxOrder = 20;  // n ≤ 20 ⇔ j ≤ 231 (kMaxZernikeModes)
 // Table nodes: s = k / 64 up to 4 (fine enough for the oscillations of
 // the high orders), then 16 per octave up to 20; beyond, the asymptote.
 constexpr int kLinearPerUnit = 64;
@@ -22,7 +22,7 @@ constexpr double kLinearEnd = 4.0;
 constexpr int kPerOctave = 16;
 constexpr double kTableMaxS = 20.0;
 constexpr int kMinTableOrder = 7;  // j ≤ 36
-constexpr double kUpperU = 24.0;  // ∫ beyond u = 24 is < 1e-8 of G(0)
+constexpr double kUpperU = 24.0;   // ∫ beyond u = 24 is < 1e-8 of G(0)
 
 // Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n).
 struct GaussLegendre {
@@ -68,9 +68,11 @@ void bessel_orders(int max_order, double x, std::array<double, 2 * kMaxOrder + 2
   if (x >= max_order && x > 0) {
     out[0] = std::cyl_bessel_j(0.0, x);
     if (max_order >= 1) out[1] = std::cyl_bessel_j(1.0, x);
-    for (int k = 1; k < max_order; ++k) out[std::size_t(k) + 1] = 2 * k / x * out[std::size_t(k)] - out[std::size_t(k) - 1];
+    for (int k = 1; k < max_order; ++k)
+      out[std::size_t(k) + 1] = 2 * k / x * out[std::size_t(k)] - out[std::size_t(k) - 1];
   } else {
-    for (int k = 0; k <= max_order; ++k) out[std::size_t(k)] = x == 0 ? (k == 0 ? 1.0 : 0.0) : std::cyl_bessel_j(k, x);
+    for (int k = 0; k <= max_order; ++k)
+      out[std::size_t(k)] = x == 0 ? (k == 0 ? 1.0 : 0.0) : std::cyl_bessel_j(k, x);
   }
 }
 
@@ -131,7 +133,8 @@ double table_index(double s) {
 }
 double table_s(int k) {
   const int linear = static_cast<int>(kLinearEnd * kLinearPerUnit);
-  return k <= linear ? double(k) / kLinearPerUnit : kLinearEnd * std::exp2(double(k - linear) / kPerOctave);
+  return k <= linear ? double(k) / kLinearPerUnit
+                     : kLinearEnd * std::exp2(double(k - linear) / kPerOctave);
 }
 
 struct UniversalTable {
@@ -159,14 +162,16 @@ const UniversalTable& universal_table(int n) {
 
 double layer_integral_direct(int n, int nu, double s) {
   require_order(n, nu, "layer_integral_direct");
-  if (!(s >= 0) || !std::isfinite(s)) throw InvalidArgument("layer_integral_direct", "s must be finite and >= 0");
+  if (!(s >= 0) || !std::isfinite(s))
+    throw InvalidArgument("layer_integral_direct", "s must be finite and >= 0");
   if (nu != 0 && (nu / 2) % 2 != n % 2) return 0.0;  // no such (n, m) pair
   return integrate_all(n, s)[std::size_t(n)][std::size_t(nu / 2)];
 }
 
 double layer_integral(int n, int nu, double s) {
   require_order(n, nu, "layer_integral");
-  if (!(s >= 0) || !std::isfinite(s)) throw InvalidArgument("layer_integral", "s must be finite and >= 0");
+  if (!(s >= 0) || !std::isfinite(s))
+    throw InvalidArgument("layer_integral", "s must be finite and >= 0");
   const int m = nu / 2;
   if (nu != 0 && m % 2 != n % 2) return 0.0;
   const UniversalTable& t = universal_table(n);
@@ -179,7 +184,8 @@ double layer_integral(int n, int nu, double s) {
   const double f = x - k;
   auto at = [&](int i) { return t.g[std::size_t(std::min(std::abs(i), last))][nn][mm]; };
   const double p0 = at(k - 1), p1 = at(k), p2 = at(k + 1), p3 = at(k + 2);
-  return p1 + 0.5 * f * (p2 - p0 + f * (2 * p0 - 5 * p1 + 4 * p2 - p3 + f * (3 * (p1 - p2) + p3 - p0)));
+  return p1 +
+         0.5 * f * (p2 - p0 + f * (2 * p0 - 5 * p1 + 4 * p2 - p3 + f * (3 * (p1 - p2) + p3 - p0)));
 }
 
 namespace {
@@ -193,11 +199,14 @@ double anisotropy_sign(const ZernikeIndex& z) {
 }  // namespace
 
 double layer_correlation(int j, double s, double alpha_rad) {
-  if (j < 2) throw InvalidArgument("layer_correlation", "needs a Noll index j >= 2 (piston has no correlation)");
+  if (j < 2)
+    throw InvalidArgument("layer_correlation",
+                          "needs a Noll index j >= 2 (piston has no correlation)");
   const ZernikeIndex z = noll_index(j);
   const double g0 = layer_integral(z.n, 0, 0.0);
   double c = layer_integral(z.n, 0, s);
-  if (z.m > 0) c += anisotropy_sign(z) * layer_integral(z.n, 2 * z.m, s) * std::cos(2 * z.m * alpha_rad);
+  if (z.m > 0)
+    c += anisotropy_sign(z) * layer_integral(z.n, 2 * z.m, s) * std::cos(2 * z.m * alpha_rad);
   return c / g0;
 }
 
@@ -205,7 +214,8 @@ FieldCorrelation::FieldCorrelation(const Params& params, int j_max, double max_a
     : j_max_(j_max), max_angle_(max_angle_rad) {
   validate(params);
   if (j_max < 2 || j_max > kMaxZernikeModes) {
-    throw InvalidArgument("FieldCorrelation", "j_max must be in 2.." + std::to_string(kMaxZernikeModes));
+    throw InvalidArgument("FieldCorrelation",
+                          "j_max must be in 2.." + std::to_string(kMaxZernikeModes));
   }
   if (!(max_angle_rad > 0) || !std::isfinite(max_angle_rad)) {
     throw InvalidArgument("FieldCorrelation", "max_angle_rad must be finite and > 0");
@@ -230,7 +240,8 @@ FieldCorrelation::FieldCorrelation(const Params& params, int j_max, double max_a
       const double z = a + half * (g.x[i] + 1);
       const double u = z / range;
       const double footprint = spherical ? aperture * u : aperture;
-      const double w = half * g.w[i] * cn2_at(params, z) * (spherical ? std::pow(u, 5.0 / 3.0) : 1.0);
+      const double w =
+          half * g.w[i] * cn2_at(params, z) * (spherical ? std::pow(u, 5.0 / 3.0) : 1.0);
       nodes.push_back({w, (range - z) / footprint});
       total += w;
     }
@@ -252,7 +263,8 @@ FieldCorrelation::FieldCorrelation(const Params& params, int j_max, double max_a
       for (int k = 0; k <= kSteps + 1; ++k) {
         const double theta = k * step_;
         double acc = 0;
-        for (const Node& nd : nodes) acc += nd.weight * layer_integral(n, 2 * m, theta * nd.s_per_rad);
+        for (const Node& nd : nodes)
+          acc += nd.weight * layer_integral(n, 2 * m, theta * nd.s_per_rad);
         col[std::size_t(k)] = acc / (total * g0);
       }
     }
@@ -281,7 +293,8 @@ double FieldCorrelation::operator()(int j, double dx_rad, double dy_rad) const {
   const ZernikeIndex z = noll_index(j);
   double c = table(z.n, 0, theta);
   if (z.m > 0 && theta > 0) {
-    c += anisotropy_sign(z) * table(z.n, 2 * z.m, theta) * std::cos(2 * z.m * std::atan2(dy_rad, dx_rad));
+    c += anisotropy_sign(z) * table(z.n, 2 * z.m, theta) *
+         std::cos(2 * z.m * std::atan2(dy_rad, dx_rad));
   }
   return c;
 }

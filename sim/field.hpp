@@ -70,10 +70,12 @@ class TurbulenceField {
   std::int64_t frame_index() const { return frame_; }
 
  private:
+  // FFT of each mode's correlation laid on the current torus: [modes, Mh, Mw, 2].
+  std::vector<float> embedding_eigenvalues() const;
   Device device_;
   int j_max_, batch_;
   int grid_h_ = 1, grid_w_ = 1, torus_h_ = 1, torus_w_ = 1;
-  double step_y_ = 0, step_x_ = 0, clipped_ = 0;
+  double step_y_ = 0, step_x_ = 0, clipped_ = 0, ifov_rad_ = 0;
   FieldOptions options_;
   std::unique_ptr<FieldCorrelation> correlation_;
   std::unique_ptr<kernels::FftPlan> plan_;

@@ -138,6 +138,5 @@ TEST(Random, BadArgumentsAreClearErrors) {
   EXPECT_THROW(kernels::randn(s, empty, 1, 0), InvalidArgument);
 }
 
-
 }  // namespace
 }  // namespace vkjr2

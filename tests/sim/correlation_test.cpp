@@ -22,7 +22,8 @@ TEST(Correlation, TableMatchesDirectQuadrature) {
     for (int nu = 0; nu <= 2 * n; nu += 2) {
       if (nu != 0 && (nu / 2) % 2 != n % 2) continue;
       for (double s : {0.0, 4e-4, 0.013, 0.21, 0.77, 1.9, 6.3, 17.0, 26.0, 45.0}) {
-        SCOPED_TRACE("n=" + std::to_string(n) + " nu=" + std::to_string(nu) + " s=" + std::to_string(s));
+        SCOPED_TRACE("n=" + std::to_string(n) + " nu=" + std::to_string(nu) +
+                     " s=" + std::to_string(s));
         EXPECT_NEAR(layer_integral(n, nu, s), layer_integral_direct(n, nu, s), 2e-4 * g0);
       }
     }
@@ -35,7 +36,8 @@ TEST(Correlation, LayerCorrelationShape) {
     // Correlation falls from 1 with separation (high orders then oscillate
     // about 0, so monotonic only for the tilts).
     EXPECT_LT(layer_correlation(j, 0.05, 0.0), 1.0) << j;
-    for (double s = 0.25; s <= 3; s += 0.25) EXPECT_LE(std::fabs(layer_correlation(j, s, 0.0)), 1.0) << j;
+    for (double s = 0.25; s <= 3; s += 0.25)
+      EXPECT_LE(std::fabs(layer_correlation(j, s, 0.0)), 1.0) << j;
   }
   for (int j : {2, 3}) {
     double prev = 1;
@@ -65,12 +67,15 @@ TEST(Correlation, LayerCorrelationShape) {
 TEST(Correlation, MatchesStructureFunctionMonteCarlo) {
   Rng rng(777);
   const double c_d = structure_function_constant();
-  auto dphi = [&](double x, double y) { return c_d * std::pow(std::hypot(x, y) / 2, 5.0 / 3.0); };  // r0 = D = 2
+  auto dphi = [&](double x, double y) {
+    return c_d * std::pow(std::hypot(x, y) / 2, 5.0 / 3.0);
+  };  // r0 = D = 2
   struct Case {
     int j;
     double s, alpha;
   };
-  for (const Case& c : {Case{2, 0.5, 0.0}, Case{2, 0.5, kPi / 2}, Case{4, 0.4, 0.0}, Case{8, 0.3, kPi / 4}}) {
+  for (const Case& c :
+       {Case{2, 0.5, 0.0}, Case{2, 0.5, kPi / 2}, Case{4, 0.4, 0.0}, Case{8, 0.3, kPi / 4}}) {
     SCOPED_TRACE("j=" + std::to_string(c.j) + " s=" + std::to_string(c.s));
     const double dx = 2 * c.s * std::cos(c.alpha), dy = 2 * c.s * std::sin(c.alpha);  // radii
     constexpr int kPairs = 1'000'000;
@@ -86,7 +91,8 @@ TEST(Correlation, MatchesStructureFunctionMonteCarlo) {
       double x1, y1, x2, y2;
       point(x1, y1);
       point(x2, y2);
-      const double f = dphi(x1 - x2 - dx, y1 - y2 - dy) - dphi(x1 - dx, y1 - dy) - dphi(-x2 - dx, -y2 - dy) + d0;
+      const double f =
+          dphi(x1 - x2 - dx, y1 - y2 - dy) - dphi(x1 - dx, y1 - dy) - dphi(-x2 - dx, -y2 - dy) + d0;
       const double v = -0.5 * zernike_xy(c.j, x1, y1) * zernike_xy(c.j, x2, y2) * f;
       sum += v;
       sum2 += v * v;
