@@ -37,7 +37,7 @@ void mix_planes(Stream& stream, const Tensor& planes, const Tensor& mix, const T
                                   std::to_string(p.out_w) + " must lie inside the planes " +
                                   s.str());
   }
-  require_shape(out, Shape{p.batch, p.out_h * p.out_w, k}, op, "out");
+  require_shape(out, Shape{p.batch, k, p.out_h, p.out_w}, op, "out");
   if (first2 != nullptr) {
     if (k < 2) throw InvalidArgument(op, "first2 needs K >= 2");
     require_shape(*first2, Shape{p.batch, 2, p.out_h, p.out_w}, op, "first2");

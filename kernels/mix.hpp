@@ -20,10 +20,10 @@ struct MixPlanesParams {
 };
 
 // planes: [K·B, H, W, 2] complex, plane k of batch item b at index k·B + b;
-// mix: [K, K] row-major; out: [B, out_h·out_w, K];
-// out[b, y·out_w + x, i] = scale · Σ_k mix[i, k] · Re planes[k·B + b, y, x].
+// mix: [K, K] row-major; out: [B, K, out_h, out_w];
+// out[b, i, y, x] = scale · Σ_k mix[i, k] · Re planes[k·B + b, y, x].
 // first2 (optional, needs K ≥ 2): [B, 2, out_h, out_w] with
-// first2[b, c, y, x] = first2_scale[c] · out[b, y·out_w + x, c].
+// first2[b, c, y, x] = first2_scale[c] · out[b, c, y, x].
 void mix_planes(Stream& stream, const Tensor& planes, const Tensor& mix, const Tensor& out,
                 const MixPlanesParams& params, const Tensor* first2 = nullptr);
 

@@ -1,7 +1,7 @@
 #version 450
 // Crop the real parts of K complex planes and mix them point by point
-// (kernels/mix.hpp): out[b, p, i] = scale · Σ_k mix[i, k] · Re planes[k·B + b][y, x],
-// p = y·out_w + x; optionally first2[b, c, y, x] = first2_scale[c] · out[b, p, c], c < 2.
+// (kernels/mix.hpp): out[b, i, y, x] = scale · Σ_k mix[i, k] · Re planes[k·B + b][y, x];
+// optionally first2[b, c, y, x] = first2_scale[c] · out[b, c, y, x], c < 2.
 // One invocation per (point, batch item); the mix matrix is read through a
 // texel buffer, the planes as RG32F texels.
 #include "common.glsl"
@@ -24,7 +24,7 @@ void main() {
   const uint x = p - y * pc.out_w;
   const uint plane_size = pc.plane_h * pc.plane_w;
   const uint at = y * pc.plane_w + x;
-  const uint out_base = (b * points + p) * pc.k;
+  const uint out_base = b * pc.k * points + p;
   for (uint i = 0u; i < pc.k; ++i) {
     float acc = 0.0;
     for (uint kk = 0u; kk < pc.k; ++kk) {
@@ -32,7 +32,7 @@ void main() {
       if (m != 0.0) acc = fma(m, texelFetch(planes, int((kk * pc.batch + b) * plane_size + at)).r, acc);
     }
     acc *= pc.scale;
-    o[out_base + i] = acc;
+    o[out_base + i * points] = acc;
     if (pc.write_first2 != 0u && i < 2u) {
       f2[(b * 2u + i) * points + p] = acc * (i == 0u ? pc.first2_x : pc.first2_y);
     }

@@ -116,7 +116,7 @@ TurbulenceField::TurbulenceField(const Device& device, const Params& params,
   mix_ = Tensor::from(device_, {k_modes, k_modes}, chol);
   scale_ = static_cast<float>(std::pow(derived.channels[0].d_over_r0, 5.0 / 6.0));
   tilt_x_ = tilt_y_ = static_cast<float>(sim::tilt_px(1.0, params, 0));
-  coefficients_ = Tensor::empty(device_, {batch_, std::int64_t(grid_h_) * grid_w_, k_modes});
+  coefficients_ = Tensor::empty(device_, {batch_, k_modes, grid_h_, grid_w_});
   tilt_ = Tensor::empty(device_, {batch_, 2, grid_h_, grid_w_});
 }
 

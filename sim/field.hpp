@@ -62,7 +62,7 @@ class TurbulenceField {
   double clipped_fraction() const { return clipped_; }
   const FieldCorrelation& correlation() const { return *correlation_; }
 
-  // [B, grid_h·grid_w, modes]: column k is a_{k+2} in radians (channel 0).
+  // [B, modes, grid_h, grid_w]: plane k is a_{k+2} in radians (channel 0).
   const Tensor& coefficients() const { return coefficients_; }
   // [B, 2, grid_h, grid_w]: the image shift (x, y) in pixels from a_2, a_3
   // (positive a_2 moves the image toward +x; docs/sim.md §4).

@@ -20,7 +20,7 @@ void mix_planes(std::span<const float> planes, std::int64_t plane_h, std::int64_
                    planes[std::size_t(((plane * plane_h + y) * plane_w + x) * 2)];
           }
           const float v = static_cast<float>(acc * p.scale);
-          out[std::size_t((b * points + pt) * k + i)] = v;
+          out[std::size_t((b * k + i) * points + pt)] = v;
           if (i < 2)
             first2[std::size_t((b * 2 + i) * points + pt)] = v * p.first2_scale[std::size_t(i)];
         }

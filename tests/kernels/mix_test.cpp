@@ -33,9 +33,9 @@ TEST(MixPlanes, MatchesReferenceOnRandomShapes) {
     mix[0] = 0.f;  // zeros are skipped by the shader; the result must not change
     Tensor tp = Tensor::from(dev, {k * b, h, w, 2}, planes);
     Tensor tm = Tensor::from(dev, {k, k}, mix);
-    Tensor out = Tensor::empty(dev, {b, p.out_h * p.out_w, k});
+    Tensor out = Tensor::empty(dev, {b, k, p.out_h, p.out_w});
     Tensor f2 = Tensor::empty(dev, {b, 2, p.out_h, p.out_w});
-    Tensor out2 = Tensor::empty(dev, {b, p.out_h * p.out_w, k});
+    Tensor out2 = Tensor::empty(dev, {b, k, p.out_h, p.out_w});
     Stream s(dev);
     kernels::mix_planes(s, tp, tm, out, p, &f2);
     kernels::mix_planes(s, tp, tm, out2, p);
@@ -52,7 +52,7 @@ TEST(MixPlanes, BadShapesAreClearErrors) {
   Device& dev = test::device();
   Tensor planes = Tensor::empty(dev, {6, 8, 8, 2});
   Tensor mix = Tensor::empty(dev, {3, 3});
-  Tensor out = Tensor::empty(dev, {2, 16, 3});
+  Tensor out = Tensor::empty(dev, {2, 3, 4, 4});
   Stream s(dev);
   kernels::MixPlanesParams p;
   p.batch = 2;

@@ -78,13 +78,12 @@ TEST(TurbulenceField, OnePointCovarianceMatchesNoll) {
       const float* tilt = &all_tilt[std::size_t(b * 2 * points)];
       double s22 = 0, s33 = 0, s44 = 0, s28 = 0, st = 0;
       for (int q = 0; q < points; ++q) {
-        const float* row = &a[std::size_t(q * k)];
-        s22 += double(row[0]) * row[0];
-        s33 += double(row[1]) * row[1];
-        s44 += double(row[2]) * row[2];
-        s28 += double(row[0]) * row[6];
+        s22 += double(a[q]) * a[q];
+        s33 += double(a[points + q]) * a[points + q];
+        s44 += double(a[2 * points + q]) * a[2 * points + q];
+        s28 += double(a[q]) * a[6 * points + q];
         st += double(tilt[q]) * tilt[q];
-        ASSERT_FLOAT_EQ(tilt[q], row[0] * float(tilt_px(1.0, p, 0)));
+        ASSERT_FLOAT_EQ(tilt[q], a[q] * float(tilt_px(1.0, p, 0)));
       }
       e22.push_back(s22 / points);
       e33.push_back(s33 / points);
@@ -138,7 +137,7 @@ TEST(TurbulenceField, SpatialCorrelationMatchesTheory) {
         for (int y = 0; y + g.dy < gh; ++y) {
           for (int x = 0; x + g.dx < gw; ++x) {
             acc +=
-                double(a[(y * gw + x) * k + g.mode]) * a[((y + g.dy) * gw + x + g.dx) * k + g.mode];
+                double(a[(g.mode * gh + y) * gw + x]) * a[(g.mode * gh + y + g.dy) * gw + x + g.dx];
             ++count;
           }
         }
@@ -186,10 +185,10 @@ TEST(TurbulenceField, TemporalCorrelationIsAr1) {
       // Normalized lag-1 products at every point (unit variance per mode).
       double ct = 0, vt = 0, ch = 0, vh = 0;
       for (int q = 0; q < points; ++q) {
-        ct += double(a0[q * k]) * a1[q * k];
-        vt += double(a0[q * k]) * a0[q * k];
-        ch += double(a0[q * k + 2]) * a1[q * k + 2];
-        vh += double(a0[q * k + 2]) * a0[q * k + 2];
+        ct += double(a0[q]) * a1[q];
+        vt += double(a0[q]) * a0[q];
+        ch += double(a0[2 * points + q]) * a1[2 * points + q];
+        vh += double(a0[2 * points + q]) * a0[2 * points + q];
       }
       tilt.push_back(ct / vt);
       high.push_back(ch / vh);

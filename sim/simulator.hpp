@@ -1,0 +1,87 @@
+// The fast turbulence simulator: one degraded frame per call,
+//   y = Σ_k ψ_k ⊛ (β_k ⊙ W(x; τ)) / Σ_k ψ_k ⊛ β_k + noise        (DESIGN.md, "Frame formation")
+// with the tilt field τ (pixels, from a_2, a_3) warping the image, the
+// PSF-basis weights β_k from the high-order coefficients a_4..a_J through
+// a BlurModel (the P2S network), both on the coarse grid of a
+// TurbulenceField and bilinearly interpolated to every pixel, and optional
+// Poisson–Gaussian sensor noise. Everything is recorded into a Stream;
+// frame t + 1's turbulence is frame t's AR(1) successor (video).
+// Differentiable with respect to the input image (frame_backward).
+#pragma once
+
+#include <vkjr2/runtime/stream.hpp>
+#include <vkjr2/sim/field.hpp>
+#include <vkjr2/sim/params.hpp>
+
+#include <cstdint>
+#include <memory>
+
+namespace vkjr2::sim {
+
+// A spatially varying blur written in a PSF basis.
+class BlurModel {
+ public:
+  virtual ~BlurModel() = default;
+  // ψ: [K, S, S], S odd; ψ_0 is the mean PSF.
+  virtual const Tensor& basis() const = 0;
+  // The highest Noll index of the input coefficients (input: a_4..a_{j_max}).
+  virtual int j_max() const = 0;
+  // The sampling (Nyquist ratio λf/(2Dp)) the basis was made for.
+  virtual double nyquist() const = 0;
+  // coefficients [N, j_max − 3, h, w] in radians → beta [N, K, h, w].
+  virtual void weights(Stream& stream, const Tensor& coefficients, const Tensor& beta) const = 0;
+};
+
+struct SensorNoise {
+  double photons_per_unit = 0;  // shot noise: photons for a pixel value of 1 (0 = none)
+  double read_std = 0;          // read noise σ in pixel-value units
+};
+
+struct SimOptions {
+  FieldOptions field;
+  bool tilt = true;
+  bool blur = true;  // needs a BlurModel
+  SensorNoise noise;
+};
+
+class Simulator {
+ public:
+  // params.image gives the frame shape [batch, channels, height, width].
+  // blur may be null when options.blur is false. Throws InvalidArgument when
+  // the blur model's sampling or modes do not fit the parameters.
+  Simulator(const Device& device, const Params& params, std::shared_ptr<const BlurModel> blur,
+            const SimOptions& options = {});
+  ~Simulator();
+  Simulator(const Simulator&) = delete;
+  Simulator& operator=(const Simulator&) = delete;
+
+  // A new sequence from this seed (turbulence and noise).
+  void reset(std::uint64_t seed);
+  // Records the next frame: x, y [B, C, H, W] (y may not alias x).
+  void frame(Stream& stream, const Tensor& x, const Tensor& y);
+  // dx = ∂⟨dy, y⟩/∂x for the last frame's turbulence (noise is additive).
+  void frame_backward(Stream& stream, const Tensor& dy, const Tensor& dx);
+
+  const Params& params() const { return params_; }
+  const Derived& derived() const { return derived_; }
+  const TurbulenceField& field() const { return *field_; }
+  // The last frame's maps: flow [B, 2, H, W] (the warp's sampling offset,
+  // = −tilt), beta [B, K, H, W] (undefined without blur).
+  const Tensor& flow() const { return flow_; }
+  const Tensor& beta() const { return beta_; }
+
+ private:
+  void blur(Stream& stream, const Tensor& x, const Tensor& y);
+  Device device_;
+  Params params_;
+  Derived derived_;
+  SimOptions options_;
+  std::shared_ptr<const BlurModel> blur_;
+  std::unique_ptr<TurbulenceField> field_;
+  std::uint64_t seed_ = 0;
+  std::int64_t frame_ = -1;
+  Tensor input_;  // the last frame's x (its backward needs it)
+  Tensor flow_, warped_, beta_grid_, beta_, norm_, blurred_;
+};
+
+}  // namespace vkjr2::sim

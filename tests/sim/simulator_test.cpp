@@ -1,0 +1,168 @@
+#include <vkjr2/kernels/ref/warp_ref.hpp>
+#include <vkjr2/runtime/error.hpp>
+#include <vkjr2/sim/simulator.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <vector>
+
+#include "support/expect.hpp"
+#include "support/gradcheck.hpp"
+#include "support/test_device.hpp"
+
+namespace vkjr2::sim {
+namespace {
+
+Params frame_params(int batch, int channels, int height, int width,
+                    const char* strength = "strong") {
+  Params p = preset(strength);
+  p.image = {height, width, channels, batch};
+  return p;
+}
+
+// A smooth test scene with detail at several scales, values in [0, 1].
+std::vector<float> scene(const ImageShape& im) {
+  std::vector<float> v(std::size_t(im.batch) * im.channels * im.height * im.width);
+  std::size_t i = 0;
+  for (int b = 0; b < im.batch; ++b)
+    for (int c = 0; c < im.channels; ++c)
+      for (int y = 0; y < im.height; ++y)
+        for (int x = 0; x < im.width; ++x)
+          v[i++] = 0.5f + 0.25f * std::sin(0.31f * x + 0.7f * c + b) * std::cos(0.17f * y) +
+                   0.2f * ((x / 8 + y / 8) % 2);
+  return v;
+}
+
+SimOptions tilt_only() {
+  SimOptions o;
+  o.blur = false;
+  return o;
+}
+
+// Tilt only: the frame is the input warped by the interpolated tilt field,
+// and the flow is minus the field's tilt where grid points fall on pixels.
+TEST(Simulator, TiltFrameIsTheWarpOfTheField) {
+  Device& dev = test::device();
+  const Params p = frame_params(2, 3, 40, 56);
+  Simulator sim(dev, p, nullptr, tilt_only());
+  const auto xs = scene(p.image);
+  Tensor x = Tensor::from(dev, {2, 3, 40, 56}, xs);
+  Tensor y = Tensor::empty(dev, x.shape());
+  sim.reset(3);
+  Stream s(dev);
+  sim.frame(s, x, y);
+  s.run();
+  const auto flow = sim.flow().download();
+  const auto want = ref::warp(xs, flow, 2, 3, 40, 56, kernels::SamplePadding::border);
+  test::expect_all_near(y.download(), want, 1e-5, 1e-5);
+  // Corner grid points sit on corner pixels.
+  const auto tilt = sim.field().tilt_px().download();
+  const int gh = sim.field().grid_h(), gw = sim.field().grid_w();
+  EXPECT_NEAR(flow[0], -tilt[0], 1e-5);
+  EXPECT_NEAR(flow[std::size_t(39 * 56 + 55)], -tilt[std::size_t((gh - 1) * gw + gw - 1)], 1e-5);
+  // Strong turbulence moves the image by pixels, not by nothing.
+  double rms = 0;
+  for (float f : flow) rms += double(f) * f;
+  EXPECT_GT(std::sqrt(rms / double(flow.size())), 0.3);
+}
+
+TEST(Simulator, SameSeedSameFramesAndVideoEvolves) {
+  Device& dev = test::device();
+  const Params p = frame_params(1, 1, 32, 48);
+  SimOptions o = tilt_only();
+  o.field.tilt_rho = 0.95;
+  o.noise.read_std = 0.01;
+  Simulator a(dev, p, nullptr, o), b(dev, p, nullptr, o);
+  Tensor x = Tensor::from(dev, {1, 1, 32, 48}, scene(p.image));
+  Tensor ya = Tensor::empty(dev, x.shape()), yb = Tensor::empty(dev, x.shape());
+  a.reset(77);
+  b.reset(77);
+  Stream s(dev);
+  std::vector<float> prev;
+  for (int t = 0; t < 3; ++t) {
+    a.frame(s, x, ya);
+    b.frame(s, x, yb);
+    s.run();
+    const auto va = ya.download();
+    EXPECT_EQ(va, yb.download()) << "frame " << t;
+    EXPECT_NE(va, prev) << "frame " << t;
+    prev = va;
+  }
+}
+
+// Noise only (no tilt, no blur): y − x has variance x/photons + read².
+// Bound 4σ of the variance estimator (σ ≈ var·√(2/n)).
+TEST(Simulator, SensorNoiseStatistics) {
+  Device& dev = test::device();
+  const Params p = frame_params(1, 1, 256, 256);
+  SimOptions o = tilt_only();
+  o.tilt = false;
+  o.noise.photons_per_unit = 400;
+  o.noise.read_std = 0.02;
+  Simulator sim(dev, p, nullptr, o);
+  std::vector<float> xs(256 * 256, 0.25f);
+  Tensor x = Tensor::from(dev, {1, 1, 256, 256}, xs);
+  Tensor y = Tensor::empty(dev, x.shape());
+  sim.reset(9);
+  Stream s(dev);
+  sim.frame(s, x, y);
+  s.run();
+  const auto ys = y.download();
+  double m = 0, v = 0;
+  for (float e : ys) m += e - 0.25;
+  m /= double(ys.size());
+  for (float e : ys) v += (e - 0.25 - m) * (e - 0.25 - m);
+  v /= double(ys.size());
+  const double want = 0.25 / 400 + 0.02 * 0.02;
+  EXPECT_NEAR(m, 0.0, 4 * std::sqrt(want / double(ys.size())));
+  EXPECT_NEAR(v, want, 4 * want * std::sqrt(2.0 / double(ys.size())));
+}
+
+// The frame is linear in x for fixed turbulence; frame_backward is checked
+// by central differences of L = Σ w ⊙ frame(x) with the same seed each time.
+TEST(Simulator, TiltBackwardMatchesFiniteDifferences) {
+  Device& dev = test::device();
+  const Params p = frame_params(1, 2, 12, 17);
+  Simulator sim(dev, p, nullptr, tilt_only());
+  const Shape shape{1, 2, 12, 17};
+  const auto w = test::random_floats(std::size_t(shape.numel()), 5);
+  auto loss = [&](std::span<const float> xv) {
+    Tensor x = Tensor::from(dev, shape, xv);
+    Tensor y = Tensor::empty(dev, shape);
+    sim.reset(21);
+    Stream s(dev);
+    sim.frame(s, x, y);
+    s.run();
+    const auto yv = y.download();
+    double l = 0;
+    for (std::size_t i = 0; i < yv.size(); ++i) l += double(w[i]) * yv[i];
+    return l;
+  };
+  const auto xs = scene(p.image);
+  Tensor x = Tensor::from(dev, shape, xs);
+  Tensor y = Tensor::empty(dev, shape), dy = Tensor::from(dev, shape, w),
+         dx = Tensor::empty(dev, shape);
+  sim.reset(21);
+  Stream s(dev);
+  sim.frame(s, x, y);
+  sim.frame_backward(s, dy, dx);
+  s.run();
+  test::expect_gradient_matches(loss, xs, dx.download(), "simulator tilt d/dx");
+}
+
+TEST(Simulator, BadInputsAreClearErrors) {
+  Device& dev = test::device();
+  const Params p = frame_params(1, 1, 16, 16);
+  EXPECT_THROW(Simulator(dev, p, nullptr, SimOptions{}), InvalidArgument);  // blur on, no model
+  Simulator sim(dev, p, nullptr, tilt_only());
+  Tensor wrong = Tensor::empty(dev, {1, 1, 16, 15});
+  Tensor y = Tensor::empty(dev, {1, 1, 16, 16});
+  Stream s(dev);
+  sim.reset(1);
+  EXPECT_THROW(sim.frame(s, wrong, y), InvalidArgument);
+  EXPECT_THROW(sim.frame_backward(s, y, y), InvalidArgument);  // no frame yet
+}
+
+}  // namespace
+}  // namespace vkjr2::sim
