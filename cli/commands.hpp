@@ -5,7 +5,10 @@
 
 namespace vkjr2::cli {
 
-void add_devices(CLI::App& app);  // devices.cpp
-void add_faces(CLI::App& app);    // faces.cpp: detect, embed, verify, identify
+void add_devices(CLI::App& app);    // devices.cpp
+void add_faces(CLI::App& app);      // faces.cpp: detect, embed, verify, identify
+void add_simulate(CLI::App& app);   // simulate.cpp
+void add_sim_train(CLI::App& app);  // sim_train.cpp
+void add_wave(CLI::App& app);       // wave.cpp
 
 }  // namespace vkjr2::cli

@@ -32,6 +32,9 @@ int run(int argc, char** argv) {
       "3 no Vulkan device.");
   vkjr2::cli::add_devices(app);
   vkjr2::cli::add_faces(app);
+  vkjr2::cli::add_simulate(app);
+  vkjr2::cli::add_sim_train(app);
+  vkjr2::cli::add_wave(app);
   if (argc > 1 && argv[1][0] != '-' && !has_subcommand(app, argv[1])) {
     std::fprintf(stderr, "vkjr2: error: unknown command '%s'. Run `vkjr2 --help` for the list.\n",
                  argv[1]);

@@ -170,6 +170,79 @@ void write_png(const std::filesystem::path& path, const Image& image, bool force
   std::filesystem::rename(tmp, path);
 }
 
+double video_fps(const std::filesystem::path& path) {
+  cv::VideoCapture cap(path.string(), cv::CAP_FFMPEG);
+  const double fps = cap.isOpened() ? cap.get(cv::CAP_PROP_FPS) : 0.0;
+  return std::isfinite(fps) && fps > 0 ? fps : 0.0;
+}
+
+struct VideoWriter::State {
+  cv::VideoWriter writer;
+};
+
+VideoWriter::VideoWriter(std::filesystem::path path, double fps, int width, int height, bool force)
+    : path_(std::move(path)), state_(std::make_unique<State>()), width_(width), height_(height) {
+  check_writable(path_, force);
+  const std::string ext = lower_ext(path_);
+  int fourcc = 0;
+  if (ext == ".avi") {
+    fourcc = cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  } else if (ext == ".mp4" || ext == ".mov" || ext == ".mkv") {
+    fourcc = cv::VideoWriter::fourcc('m', 'p', '4', 'v');
+  } else {
+    throw InvalidArgument("write_video", path_.string() + ": unknown video extension '" + ext + "'",
+                          "use .avi (Motion-JPEG) or .mp4");
+  }
+  tmp_ = path_.parent_path() / (path_.stem().string() + ".tmp-" + std::to_string(::getpid()) + ext);
+  bool ok = false;
+  try {
+    ok = state_->writer.open(tmp_.string(), cv::CAP_FFMPEG, fourcc, fps > 0 ? fps : 25.0,
+                             cv::Size(width, height));
+  } catch (const cv::Exception&) {
+    ok = false;
+  }
+  if (!ok) {
+    std::error_code ec;
+    std::filesystem::remove(tmp_, ec);
+    throw Error("write_video", "cannot write " + path_.string(),
+                "check that the folder exists and is writable");
+  }
+}
+
+VideoWriter::~VideoWriter() {
+  if (!finished_) {
+    state_->writer.release();
+    std::error_code ec;
+    std::filesystem::remove(tmp_, ec);
+  }
+}
+
+void VideoWriter::write(const Image& frame) {
+  if (frame.shape.size() != 3 || frame.shape[0] != height_ || frame.shape[1] != width_ ||
+      frame.shape[2] != 3) {
+    throw InvalidArgument("write_video", "frame has shape " + nets::shape_str(frame.shape) +
+                                             ", the video is " + std::to_string(height_) + "×" +
+                                             std::to_string(width_) + "×3");
+  }
+  cv::Mat rgb(height_, width_, CV_32FC3,
+              const_cast<float*>(frame.values.data()));  // NOLINT: read only
+  cv::Mat bgr, out;
+  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
+  bgr.convertTo(out, CV_8UC3);
+  state_->writer.write(out);
+  ++frames_;
+}
+
+void VideoWriter::finish() {
+  if (finished_) return;
+  state_->writer.release();
+  if (frames_ == 0) {
+    throw Error("write_video", "no frame was written to " + path_.string(), "check the input");
+  }
+  std::filesystem::rename(tmp_, path_);
+  finished_ = true;
+}
+
 std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir) {
   std::vector<std::filesystem::path> out;
   for (const auto& e : std::filesystem::directory_iterator(dir)) {

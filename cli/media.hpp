@@ -7,6 +7,7 @@
 
 #include <filesystem>
 #include <functional>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,33 @@ std::size_t read_video(const std::filesystem::path& path, std::size_t stride,
 // PNG (8-bit) written atomically: temporary name in the same folder, then
 // rename. Refuses to replace an existing file unless `force`.
 void write_png(const std::filesystem::path& path, const Image& image, bool force);
+
+// Frames per second a video declares (0 when it declares none).
+double video_fps(const std::filesystem::path& path);
+
+// A video written atomically: frames go to a temporary file beside `path`
+// (same extension, so OpenCV picks the same container), finish() renames it
+// into place; a writer destroyed before finish() removes its temporary file.
+// .avi is Motion-JPEG, .mp4/.mov/.mkv MPEG-4 part 2 (what OpenCV's FFmpeg
+// backend writes without extra codecs).
+class VideoWriter {
+ public:
+  VideoWriter(std::filesystem::path path, double fps, int width, int height, bool force);
+  ~VideoWriter();
+  VideoWriter(const VideoWriter&) = delete;
+  VideoWriter& operator=(const VideoWriter&) = delete;
+  void write(const Image& frame);  // H×W×3 RGB 0..255, the size given
+  void finish();
+  std::size_t frames() const { return frames_; }
+
+ private:
+  struct State;
+  std::filesystem::path path_, tmp_;
+  std::unique_ptr<State> state_;
+  int width_, height_;
+  std::size_t frames_ = 0;
+  bool finished_ = false;
+};
 
 // Images directly inside `dir`, sorted by name.
 std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir);

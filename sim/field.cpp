@@ -26,8 +26,16 @@ TurbulenceField::~TurbulenceField() = default;
 
 TurbulenceField::TurbulenceField(const Device& device, const Params& params,
                                  const FieldOptions& options)
-    : device_(device), j_max_(params.zernike_modes), batch_(params.image.batch), options_(options) {
+    : device_(device),
+      j_max_(options.j_max == 0 ? params.zernike_modes : options.j_max),
+      batch_(params.image.batch),
+      options_(options) {
   const char* op = "TurbulenceField";
+  if (j_max_ < 3 || j_max_ > params.zernike_modes) {
+    throw InvalidArgument(op, "FieldOptions::j_max must be 0 or in 3.." +
+                                  std::to_string(params.zernike_modes) + ", got " +
+                                  std::to_string(options.j_max));
+  }
   if (options.max_step_px < 1 || options.max_step_px > 256) {
     throw InvalidArgument(
         op, "max_step_px must be in 1..256, got " + std::to_string(options.max_step_px));

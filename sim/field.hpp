@@ -24,6 +24,9 @@
 namespace vkjr2::sim {
 
 struct FieldOptions {
+  // Highest Noll index sampled (0: params.zernike_modes; 3: tilts only,
+  // which allows a much coarser grid).
+  int j_max = 0;
   // Grid step: the largest step (px, ≤ max_step_px) at which every mode's
   // correlation along x and y is still ≥ min_step_correlation.
   int max_step_px = 16;

@@ -57,7 +57,16 @@ Simulator::Simulator(const Device& device, const Params& params,
       }
     }
   }
-  field_ = std::make_unique<TurbulenceField>(device_, params_, options.field);
+  FieldOptions field_options = options.field;
+  // Without blur only the tilts matter, and they allow a much coarser grid.
+  if (!options.blur && field_options.j_max == 0) field_options.j_max = 3;
+  if (options.blur && params.image.channels > kMaxPsfChannels) {
+    throw InvalidArgument(
+        kOp,
+        "the blur takes 1 to 4 channels, the image has " + std::to_string(params.image.channels),
+        "simulate the channels in groups of at most 4");
+  }
+  field_ = std::make_unique<TurbulenceField>(device_, params_, field_options);
   const ImageShape& im = params_.image;
   const std::int64_t b = im.batch, c = im.channels, h = im.height, w = im.width;
   flow_ = Tensor::empty(device_, {b, 2, h, w});
@@ -109,34 +118,9 @@ void Simulator::frame(Stream& stream, const Tensor& x, const Tensor& y) {
 }
 
 void Simulator::blur(Stream& stream, const Tensor& x, const Tensor& y) {
-  const ImageShape& im = params_.image;
-  const std::int64_t gh = field_->grid_h(), gw = field_->grid_w(), plane = gh * gw;
-  const std::int64_t modes = field_->modes(), inputs = blur_->j_max() - 3,
-                     k = blur_->basis().shape()[0];
-  for (std::int64_t b = 0; b < im.batch; ++b) {
-    // a_4..a_J of image b: planes 2..J−2 of its coefficient maps.
-    const Tensor coeffs =
-        field_->coefficients().view(Shape{1, inputs, gh, gw}, (b * modes + 2) * plane);
-    blur_->weights(stream, coeffs, beta_grid_.view(Shape{1, k, gh, gw}, b * k * plane));
-  }
+  blur_->weights(stream, field_->coefficients(), beta_grid_);
   kernels::resize(stream, beta_grid_, kernels::ResizeMode::bilinear_align_corners, beta_);
-  const kernels::PsfConvParams pc{.normalize = true};
-  if (im.channels <= kMaxPsfChannels) {
-    kernels::psf_conv(stream, x, beta_, blur_->basis(), y, norm_, pc);
-    return;
-  }
-  const std::int64_t hw = std::int64_t(im.height) * im.width;
-  for (std::int64_t b = 0; b < im.batch; ++b) {
-    const Tensor beta_b = beta_.view(Shape{1, k, im.height, im.width}, b * k * hw);
-    const Tensor norm_b = norm_.view(Shape{1, 1, im.height, im.width}, b * hw);
-    for (std::int64_t c0 = 0; c0 < im.channels; c0 += kMaxPsfChannels) {
-      const std::int64_t cc = std::min<std::int64_t>(kMaxPsfChannels, im.channels - c0);
-      const Shape part{1, cc, im.height, im.width};
-      const std::int64_t at = (b * im.channels + c0) * hw;
-      kernels::psf_conv(stream, x.view(part, at), beta_b, blur_->basis(), y.view(part, at), norm_b,
-                        pc);
-    }
-  }
+  kernels::psf_conv(stream, x, beta_, blur_->basis(), y, norm_, {.normalize = true});
 }
 
 void Simulator::frame_backward(Stream& stream, const Tensor& dy, const Tensor& dx) {

@@ -28,7 +28,8 @@ class BlurModel {
   virtual int j_max() const = 0;
   // The sampling (Nyquist ratio λf/(2Dp)) the basis was made for.
   virtual double nyquist() const = 0;
-  // coefficients [N, j_max − 3, h, w] in radians → beta [N, K, h, w].
+  // coefficients [N, M, h, w] in radians, planes a_2..a_{M+1} with
+  // M + 1 ≥ j_max (the model reads a_4..a_{j_max}) → beta [N, K, h, w].
   virtual void weights(Stream& stream, const Tensor& coefficients, const Tensor& beta) const = 0;
 };
 

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <string>
 
+#include "support/cli_files.hpp"
 #include "support/parity.hpp"
 #include "support/run_cli.hpp"
 
@@ -18,7 +19,9 @@ namespace {
 
 namespace fs = std::filesystem;
 using nlohmann::json;
+using vkjr2::test::parse_json;
 using vkjr2::test::run_cli;
+using vkjr2::test::TempDir;
 
 fs::path sample_photo(int n) {
   return vkjr2::test::parity_dir().parent_path() / "face-api-1.7.15" / "demo" /
@@ -27,26 +30,6 @@ fs::path sample_photo(int n) {
 
 fs::path chip150(const std::string& name) {
   return vkjr2::test::parity_dir() / (name + "_150.npy");
-}
-
-// A fresh folder per test, removed at the end.
-struct TempDir {
-  fs::path path;
-  explicit TempDir(const std::string& tag)
-      : path(fs::temp_directory_path() / ("vkjr2_cli_" + tag + "_" + std::to_string(::getpid()))) {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path, ec);
-  }
-};
-
-json parse_json(const std::string& out) {
-  const auto start = out.find_first_of("[{");
-  if (start == std::string::npos) return json();
-  return json::parse(out.substr(start), nullptr, false);
 }
 
 TEST(CliFaces, DetectFindsTheFacesOfSample1AndDraws) {

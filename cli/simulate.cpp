@@ -1,0 +1,267 @@
+// vkjr2 simulate: degrade an image or a video with the fast turbulence simulator.
+#include <vkjr2/runtime/device.hpp>
+#include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/stream.hpp>
+#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/simulator.hpp>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <memory>
+#include <string>
+
+#include "commands.hpp"
+#include "media.hpp"
+#include "progress.hpp"
+#include "sim_common.hpp"
+
+namespace vkjr2::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct SimArgs {
+  PathArgs path;
+  std::string input, output, device, blur_model, dump_fields;
+  std::uint64_t seed = 1;
+  int frames = 0, max_frames = 0;
+  bool no_blur = false, no_tilt = false, json_out = false, quiet = false, force = false;
+  double photons = 0, read_noise = 0, tilt_rho = 0.9, high_order_rho = 0.6;
+};
+
+// A signed map as grey: 128 + 127·v/scale.
+Image signed_map(const float* v, std::int64_t h, std::int64_t w, double scale) {
+  Image img;
+  img.shape = {h, w, 3};
+  img.values.resize(std::size_t(h * w * 3));
+  for (std::size_t i = 0; i < std::size_t(h * w); ++i) {
+    const auto g = static_cast<float>(128 + 127 * std::clamp(double(v[i]) / scale, -1.0, 1.0));
+    img.values[i * 3] = img.values[i * 3 + 1] = img.values[i * 3 + 2] = g;
+  }
+  return img;
+}
+
+double max_abs(const float* v, std::size_t n) {
+  double m = 0;
+  for (std::size_t i = 0; i < n; ++i) m = std::max(m, std::fabs(double(v[i])));
+  return m > 0 ? m : 1.0;
+}
+
+void dump_fields(const sim::Simulator& sim, const fs::path& dir, bool force) {
+  std::error_code ec;
+  fs::create_directories(dir, ec);
+  if (ec)
+    throw Error("--dump-fields", "cannot create " + dir.string() + ": " + ec.message(),
+                "pass a writable folder");
+  const auto& im = sim.params().image;
+  const std::int64_t h = im.height, w = im.width, hw = h * w;
+  const auto flow = sim.flow().download();
+  json info;
+  const double tilt_max =
+      std::max(max_abs(flow.data(), flow.size() / 2), max_abs(flow.data() + hw, flow.size() / 2));
+  // The flow is the sampling offset (−tilt); the maps show the image shift.
+  std::vector<float> shift(flow.size());
+  for (std::size_t i = 0; i < flow.size(); ++i) shift[i] = -flow[i];
+  write_png(dir / "tilt_x.png", signed_map(shift.data(), h, w, tilt_max), force);
+  write_png(dir / "tilt_y.png", signed_map(shift.data() + hw, h, w, tilt_max), force);
+  info["tilt_png"] = {
+      {"files", {"tilt_x.png", "tilt_y.png"}}, {"grey_128_is_px", 0}, {"full_scale_px", tilt_max}};
+  if (sim.beta().defined()) {
+    const auto beta = sim.beta().download();
+    const std::int64_t k = sim.beta().shape()[1];
+    json maps = json::array();
+    for (std::int64_t i = 0; i < std::min<std::int64_t>(k, 8); ++i) {
+      const float* b = beta.data() + i * hw;
+      const double scale = max_abs(b, std::size_t(hw));
+      char name[32];
+      std::snprintf(name, sizeof name, "beta_%02d.png", int(i));
+      write_png(dir / name, signed_map(b, h, w, scale), force);
+      maps.push_back({{"file", name}, {"k", i}, {"full_scale", scale}});
+    }
+    info["beta_png"] = maps;
+  }
+  info["grid"] = {sim.field().grid_h(), sim.field().grid_w()};
+  info["grid_step_px"] = {sim.field().step_y_px(), sim.field().step_x_px()};
+  const std::string text = info.dump(2) + "\n";
+  nets::write_file_atomic(dir / "fields.json", std::as_bytes(std::span(text)), "--dump-fields");
+}
+
+void run_simulate(const SimArgs& a) {
+  const fs::path in(a.input), out(a.output);
+  if (!fs::exists(in)) throw Error("simulate", a.input + " does not exist", "check the path");
+  const bool video_in = is_video_path(in);
+  if (!video_in && !is_image_path(in)) {
+    throw InvalidArgument("simulate",
+                          a.input + " is neither an image nor a video (by its extension)",
+                          "pass .png/.jpg/.tif/.npy or .avi/.mp4/...");
+  }
+  const bool video_out = is_video_path(out);
+  if (!video_out && out.extension() != ".png") {
+    throw InvalidArgument("simulate", a.output + ": write a .png image or a video (.avi, .mp4)");
+  }
+  if (video_in && !video_out) {
+    throw InvalidArgument("simulate", "a video input needs a video output, got " + a.output,
+                          "name OUT .avi or .mp4");
+  }
+  if (!video_in && !video_out && a.frames > 1) {
+    throw InvalidArgument("--frames", std::to_string(a.frames) + " frames need a video output",
+                          "name OUT .avi or .mp4");
+  }
+  check_writable(out, a.force);
+  DeviceOptions dopt;
+  dopt.selector = a.device;
+  const Device device(dopt);
+  std::shared_ptr<const sim::BlurModel> blur;
+  if (!a.no_blur) {
+    blur = a.blur_model.empty() ? sim::load_default_blur_model(device)
+                                : sim::load_blur_model(device, a.blur_model);
+  }
+  sim::SimOptions so;
+  so.blur = !a.no_blur;
+  so.tilt = !a.no_tilt;
+  so.field.tilt_rho = a.tilt_rho;
+  so.field.high_order_rho = a.high_order_rho;
+  so.noise.photons_per_unit = a.photons;
+  so.noise.read_std = a.read_noise;
+
+  std::unique_ptr<sim::Simulator> sim;
+  std::unique_ptr<VideoWriter> writer;
+  std::unique_ptr<Stream> stream;
+  Tensor x, y;
+  std::size_t done = 0;
+  const auto t0 = std::chrono::steady_clock::now();
+  const std::size_t total =
+      video_in ? std::size_t(a.max_frames) : std::size_t(std::max(1, a.frames));
+  Progress progress("simulate", total, a.quiet);
+  auto step = [&](const Image& img) {
+    const auto h = img.shape[0], w = img.shape[1];
+    if (!sim) {
+      const sim::Params p = params_for_image(a.path, int(h), int(w));
+      sim = std::make_unique<sim::Simulator>(device, p, blur, so);
+      for (const auto& warn : sim->derived().warnings)
+        std::fprintf(stderr, "vkjr2: warning: %s\n", warn.c_str());
+      sim->reset(a.seed);
+      stream = std::make_unique<Stream>(device);
+      const Shape shape{1, p.image.channels, h, w};
+      x = Tensor::empty(device, shape);
+      y = Tensor::empty(device, shape);
+      if (video_out) {
+        writer = std::make_unique<VideoWriter>(out, video_in ? video_fps(in) : 25.0, int(w), int(h),
+                                               a.force);
+      }
+    } else if (h != sim->params().image.height || w != sim->params().image.width) {
+      throw Error("simulate", a.input + " changes frame size mid-stream",
+                  "re-encode it at one size");
+    }
+    const int channels = sim->params().image.channels;
+    x.upload(to_planes(img, channels));
+    sim->frame(*stream, x, y);
+    stream->run();
+    const Image frame = from_planes(y.download(), channels, h, w);
+    if (done == 0 && !a.dump_fields.empty()) dump_fields(*sim, a.dump_fields, a.force);
+    if (writer) {
+      writer->write(frame);
+    } else {
+      write_png(out, frame, a.force);
+    }
+    progress.update(++done);
+  };
+  if (video_in) {
+    read_video(in, 1, std::size_t(a.max_frames), [&](std::size_t, const Image& img) { step(img); });
+  } else {
+    const Image img = read_image(in);
+    for (std::size_t t = 0; t < total; ++t) step(img);
+  }
+  if (writer) writer->finish();
+  progress.done();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const sim::ChannelDerived& c0 = sim->derived().channels[0];
+  const auto& im = sim->params().image;
+  if (a.json_out) {
+    json j = {{"input", a.input},
+              {"output", a.output},
+              {"frames", done},
+              {"height", im.height},
+              {"width", im.width},
+              {"channels", im.channels},
+              {"seconds", seconds},
+              {"fps", double(done) / seconds},
+              {"seed", a.seed},
+              {"blur", so.blur},
+              {"tilt", so.tilt},
+              {"r0_m", c0.r0_m},
+              {"d_over_r0", c0.d_over_r0},
+              {"isoplanatic_angle_px", c0.isoplanatic_angle_px},
+              {"tilt_std_px", c0.tilt_std_px},
+              {"rytov", c0.rytov},
+              {"grid", {sim->field().grid_h(), sim->field().grid_w()}},
+              {"warnings", sim->derived().warnings}};
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf("simulate: %s -> %s: %zu frame(s) %lldx%lldx%d in %.2f s (%.2f frames/s)\n",
+                a.input.c_str(), a.output.c_str(), done, static_cast<long long>(im.width),
+                static_cast<long long>(im.height), im.channels, seconds, double(done) / seconds);
+    std::printf("  %s\n", sim::summary(sim->params(), sim->derived()).c_str());
+    std::printf("  field grid %dx%d (step %.2f px), tilt %s, blur %s\n", sim->field().grid_w(),
+                sim->field().grid_h(), sim->field().step_x_px(), so.tilt ? "on" : "off",
+                so.blur ? "on" : "off");
+  }
+}
+
+}  // namespace
+
+void add_simulate(CLI::App& app) {
+  auto a = std::make_shared<SimArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "simulate", "Degrade an image or a video with the fast turbulence simulator");
+  cmd->footer(
+      "Examples:\n"
+      "  vkjr2 simulate face.png face_turb.png --preset strong --seed 7\n"
+      "  vkjr2 simulate face.png clip.avi --frames 60          # a turbulent video from one image\n"
+      "  vkjr2 simulate vtest.avi vtest_turb.avi --max-frames 100 --dump-fields fields/\n"
+      "  vkjr2 simulate in.png out.png --config path.json --photons 2000 --read-noise 0.005\n"
+      "Presets: weak, moderate, strong (1 km path, D = 0.2 m, f = 1.6 m; docs/sim.md).");
+  cmd->add_option("IN", a->input, "Input image (.png, .jpg, .tif, .npy) or video (.avi, .mp4, ...)")
+      ->required();
+  cmd->add_option("OUT", a->output, "Output .png image or video (.avi Motion-JPEG, .mp4)")
+      ->required();
+  add_path_options(cmd, a->path);
+  cmd->add_option("--seed", a->seed, "Seed of the turbulence and the noise")->default_val(1);
+  cmd->add_option("--frames", a->frames, "Frames to make from an image input (video output)")
+      ->check(CLI::Range(0, 100000));
+  cmd->add_option("--max-frames", a->max_frames, "Frames to read from a video input (0 = all)")
+      ->check(CLI::Range(0, 10000000));
+  cmd->add_option("--tilt-rho", a->tilt_rho, "Frame-to-frame correlation of the tilt field")
+      ->default_val(0.9)
+      ->check(CLI::Range(0.0, 0.999));
+  cmd->add_option("--high-order-rho", a->high_order_rho, "Frame-to-frame correlation of the blur")
+      ->default_val(0.6)
+      ->check(CLI::Range(0.0, 0.999));
+  cmd->add_option("--photons", a->photons, "Shot noise: photons at full white (0 = none)")
+      ->check(CLI::Range(0.0, 1e12));
+  cmd->add_option("--read-noise", a->read_noise, "Read noise σ as a fraction of full white")
+      ->check(CLI::Range(0.0, 1.0));
+  cmd->add_flag("--no-blur", a->no_blur, "Tilt (and noise) only");
+  cmd->add_flag("--no-tilt", a->no_tilt, "Blur (and noise) only");
+  cmd->add_option(
+      "--blur-model", a->blur_model,
+      "PSF basis + P2S network (.safetensors from vkjr2 sim-train); default: the shipped one");
+  cmd->add_option(
+      "--dump-fields", a->dump_fields,
+      "Folder for the first frame's tilt maps and PSF-basis weights as PNG (+ fields.json)");
+  cmd->add_option("--device", a->device,
+                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
+  cmd->add_flag("--quiet", a->quiet, "No progress bar");
+  cmd->add_flag("--force", a->force, "Replace existing output files");
+  cmd->callback([a] { run_simulate(*a); });
+}
+
+}  // namespace vkjr2::cli

@@ -1,0 +1,158 @@
+// `vkjr2 simulate` and `vkjr2 sim-train` as a user runs them.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "support/cli_files.hpp"
+#include "support/run_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using vkjr2::test::parse_json;
+using vkjr2::test::run_cli;
+using vkjr2::test::TempDir;
+
+// A checkerboard with a gradient: edges everywhere for the warp to move.
+fs::path write_scene(const fs::path& dir, int h, int w) {
+  cv::Mat img(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      const auto v = static_cast<unsigned char>(((x / 6 + y / 6) % 2) ? 200 : 40 + x % 50);
+      img.at<cv::Vec3b>(y, x) = {v, static_cast<unsigned char>(255 - v),
+                                 static_cast<unsigned char>(y % 256)};
+    }
+  const fs::path p = dir / "scene.png";
+  cv::imwrite(p.string(), img);
+  return p;
+}
+
+double mean_abs_diff(const cv::Mat& a, const cv::Mat& b) {
+  cv::Mat d;
+  cv::absdiff(a, b, d);
+  const cv::Scalar m = cv::mean(d);
+  return (m[0] + m[1] + m[2]) / 3;
+}
+
+TEST(CliSimulate, ImageToImageIsTurbulentAndSeeded) {
+  TempDir tmp("simulate_image");
+  const fs::path in = write_scene(tmp.path, 64, 80);
+  const fs::path a = tmp.path / "a.png", b = tmp.path / "b.png", c = tmp.path / "c.png";
+  const auto r = run_cli("simulate " + in.string() + " " + a.string() +
+                         " --preset strong --seed 5 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  EXPECT_EQ(j["frames"], 1);
+  EXPECT_EQ(j["width"], 80);
+  EXPECT_GT(j["d_over_r0"].get<double>(), 5);
+  ASSERT_EQ(
+      run_cli("simulate " + in.string() + " " + b.string() + " --preset strong --seed 5 --quiet")
+          .code,
+      0);
+  ASSERT_EQ(
+      run_cli("simulate " + in.string() + " " + c.string() + " --preset strong --seed 6 --quiet")
+          .code,
+      0);
+  const cv::Mat src = cv::imread(in.string()), ia = cv::imread(a.string()),
+                ib = cv::imread(b.string()), ic = cv::imread(c.string());
+  ASSERT_FALSE(ia.empty());
+  EXPECT_EQ(mean_abs_diff(ia, ib), 0.0);   // same seed, same image
+  EXPECT_GT(mean_abs_diff(ia, ic), 1.0);   // another seed, another turbulence
+  EXPECT_GT(mean_abs_diff(ia, src), 5.0);  // visibly degraded
+  // An existing output is not replaced without --force.
+  const auto again = run_cli("simulate " + in.string() + " " + a.string() + " --quiet");
+  EXPECT_EQ(again.code, 1);
+  EXPECT_NE(again.output.find("--force"), std::string::npos) << again.output;
+}
+
+TEST(CliSimulate, ImageToVideoAndVideoToVideoWithFields) {
+  TempDir tmp("simulate_video");
+  const fs::path in = write_scene(tmp.path, 48, 64);
+  const fs::path clip = tmp.path / "clip.avi", clip2 = tmp.path / "clip2.avi",
+                 fields = tmp.path / "fields";
+  auto r = run_cli("simulate " + in.string() + " " + clip.string() +
+                   " --frames 4 --quiet --dump-fields " + fields.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  for (const char* f : {"tilt_x.png", "tilt_y.png", "beta_00.png", "beta_01.png", "fields.json"})
+    EXPECT_TRUE(fs::exists(fields / f)) << f;
+  cv::VideoCapture cap(clip.string());
+  ASSERT_TRUE(cap.isOpened());
+  int frames = 0;
+  cv::Mat m, first;
+  double change = 0;
+  while (cap.read(m)) {
+    if (frames == 0)
+      first = m.clone();
+    else
+      change += mean_abs_diff(first, m);
+    ++frames;
+  }
+  EXPECT_EQ(frames, 4);
+  EXPECT_GT(change, 0.0);  // the turbulence moves from frame to frame
+  r = run_cli("simulate " + clip.string() + " " + clip2.string() +
+              " --max-frames 2 --no-blur --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["frames"], 2);
+  // No temporary files are left beside the outputs.
+  for (const auto& e : fs::directory_iterator(tmp.path))
+    EXPECT_EQ(e.path().filename().string().find(".tmp-"), std::string::npos) << e.path();
+}
+
+TEST(CliSimulate, BadInputsAreOneLineErrors) {
+  TempDir tmp("simulate_bad");
+  const fs::path in = write_scene(tmp.path, 32, 32);
+  const fs::path out = tmp.path / "out.png";
+  auto r = run_cli("simulate " + (tmp.path / "missing.png").string() + " " + out.string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("does not exist"), std::string::npos) << r.output;
+  {
+    std::ofstream bad(tmp.path / "corrupt.avi");
+    bad << "not a video";
+  }
+  r = run_cli("simulate " + (tmp.path / "corrupt.avi").string() + " " +
+              (tmp.path / "o.avi").string());
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_FALSE(fs::exists(tmp.path / "o.avi"));
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --cn2 -1");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("Cn"), std::string::npos) << r.output;
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --frames 3");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("video output"), std::string::npos) << r.output;
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --blur-model " + in.string());
+  EXPECT_EQ(r.code, 1);
+  EXPECT_FALSE(fs::exists(out));
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --preset hurricane");
+  EXPECT_EQ(r.code, 2);
+  r = run_cli("simulate --help");
+  EXPECT_EQ(r.code, 0);
+  EXPECT_NE(r.output.find("Examples"), std::string::npos);
+}
+
+TEST(CliSimTrain, TrainsASmallModelTheSimulatorUses) {
+  TempDir tmp("sim_train");
+  const fs::path model = tmp.path / "tiny.safetensors";
+  auto r = run_cli(
+      "sim-train " + model.string() +
+      " --size 9 --count 6 --psf-samples 200 --train-samples 512 --steps 30 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  EXPECT_EQ(j["count"], 6);
+  EXPECT_LT(j["test_p2s_rel_l2"].get<double>(), 1.0);
+  const fs::path in = write_scene(tmp.path, 32, 40);
+  r = run_cli("simulate " + in.string() + " " + (tmp.path / "o.png").string() + " --blur-model " +
+              model.string() + " --quiet");
+  EXPECT_EQ(r.code, 0) << r.output;
+  r = run_cli("sim-train " + model.string() + " --size 8");
+  EXPECT_NE(r.code, 0);
+}
+
+}  // namespace
