@@ -10,5 +10,6 @@ void add_faces(CLI::App& app);      // faces.cpp: detect, embed, verify, identif
 void add_simulate(CLI::App& app);   // simulate.cpp
 void add_sim_train(CLI::App& app);  // sim_train.cpp
 void add_wave(CLI::App& app);       // wave.cpp
+void add_bench(CLI::App& app);      // bench.cpp: bench sim
 
 }  // namespace vkjr2::cli

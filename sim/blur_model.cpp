@@ -97,7 +97,7 @@ std::filesystem::path default_blur_model_path() {
   if (const char* dir = std::getenv("VKJR2_ARTIFACT_DIR"); dir != nullptr && *dir != '\0') {
     return std::filesystem::path(dir) / kName;
   }
-  const std::filesystem::path installed = std::filesystem::path(VKJR2_INSTALL_ARTIFACT_DIR) / kName;
+  std::filesystem::path installed = std::filesystem::path(VKJR2_INSTALL_ARTIFACT_DIR) / kName;
   if (std::filesystem::exists(installed)) return installed;
   return std::filesystem::path(VKJR2_SOURCE_ARTIFACT_DIR) / kName;
 }

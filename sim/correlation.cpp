@@ -93,7 +93,7 @@ std::vector<std::vector<double>> integrate_all(int n_max, double s) {
       const double jn = ju[std::size_t(n) + 1];
       const double f = base * jn * jn;
       auto& row = out[std::size_t(n)];
-      for (int m = n % 2; m <= n; m += 2) row[std::size_t(m)] += f * jnu[std::size_t(2 * m)];
+      for (int m = n % 2; m <= n; m += 2) row[std::size_t(m)] += f * jnu[2 * std::size_t(m)];
       if (n % 2 == 1) row[0] += f * jnu[0];  // ν = 0 for odd n
     }
   };

@@ -30,7 +30,7 @@ fs::path write_scene(const fs::path& dir, int h, int w) {
       img.at<cv::Vec3b>(y, x) = {v, static_cast<unsigned char>(255 - v),
                                  static_cast<unsigned char>(y % 256)};
     }
-  const fs::path p = dir / "scene.png";
+  fs::path p = dir / "scene.png";
   cv::imwrite(p.string(), img);
   return p;
 }

@@ -66,8 +66,8 @@ TEST_F(BlurModelTest, WeightsMatchTheNetwork) {
   for (int b = 0; b < n; ++b)
     for (int p = 0; p < points; ++p)
       for (int i = 0; i < in; ++i)
-        maps[std::size_t((b * planes + 2 + i) * points + p)] =
-            float(rows[std::size_t((b * points + p) * in + i)]);
+        maps[(std::size_t(b) * planes + 2 + i) * points + p] =
+            float(rows[(std::size_t(b) * points + p) * in + i]);
   Tensor coeffs = Tensor::from(dev, {n, planes, h, w}, maps);
   Tensor beta = Tensor::empty(dev, {n, 6, h, w});
   Stream s(dev);
@@ -78,8 +78,8 @@ TEST_F(BlurModelTest, WeightsMatchTheNetwork) {
   for (int b = 0; b < n; ++b)
     for (int p = 0; p < points; ++p)
       for (int k = 0; k < 6; ++k)
-        want[std::size_t((b * 6 + k) * points + p)] =
-            want_rows[std::size_t((b * points + p) * 6 + k)];
+        want[(std::size_t(b) * 6 + k) * points + p] =
+            want_rows[(std::size_t(b) * points + p) * 6 + k];
   test::expect_all_near(beta.download(), want, 1e-4, 1e-5);
   Tensor wrong = Tensor::empty(dev, {n, 12, h, w});  // a_2..a_13 only
   EXPECT_THROW(blur.weights(s, wrong, beta), InvalidArgument);
@@ -96,7 +96,7 @@ TEST_F(BlurModelTest, BlurSmoothsAndKeepsBrightness) {
   Simulator a(dev, p, blur, with), b(dev, p, nullptr, without);
   std::vector<float> xs(48 * 48);
   for (int y = 0; y < 48; ++y)
-    for (int x = 0; x < 48; ++x) xs[std::size_t(y * 48 + x)] = ((x / 2 + y / 2) % 2) ? 0.9f : 0.1f;
+    for (int x = 0; x < 48; ++x) xs[std::size_t(y) * 48 + x] = ((x / 2 + y / 2) % 2) ? 0.9f : 0.1f;
   Tensor x = Tensor::from(dev, {1, 1, 48, 48}, xs);
   Tensor ya = Tensor::empty(dev, x.shape()), yb = Tensor::empty(dev, x.shape());
   a.reset(3);
@@ -109,7 +109,7 @@ TEST_F(BlurModelTest, BlurSmoothsAndKeepsBrightness) {
     double e = 0;
     for (int r = 0; r < 48; ++r)
       for (int c = 1; c < 48; ++c)
-        e += std::pow(double(v[std::size_t(r * 48 + c)] - v[std::size_t(r * 48 + c - 1)]), 2);
+        e += std::pow(double(v[std::size_t(r) * 48 + c] - v[std::size_t(r) * 48 + c - 1]), 2);
     return e;
   };
   const auto va = ya.download(), vb = yb.download();

@@ -74,8 +74,8 @@ TEST(TurbulenceField, OnePointCovarianceMatchesNoll) {
     const auto all = f.coefficients().download();
     const auto all_tilt = f.tilt_px().download();
     for (int b = 0; b < kBatch; ++b) {
-      const float* a = &all[std::size_t(b * points * k)];
-      const float* tilt = &all_tilt[std::size_t(b * 2 * points)];
+      const float* a = &all[std::size_t(b) * points * k];
+      const float* tilt = &all_tilt[std::size_t(b) * 2 * points];
       double s22 = 0, s33 = 0, s44 = 0, s28 = 0, st = 0;
       for (int q = 0; q < points; ++q) {
         s22 += double(a[q]) * a[q];
@@ -129,7 +129,7 @@ TEST(TurbulenceField, SpatialCorrelationMatchesTheory) {
     s.run();
     const auto all = f.coefficients().download();
     for (int b = 0; b < kBatch; ++b) {
-      const float* a = &all[std::size_t(b * gh * gw * k)];
+      const float* a = &all[std::size_t(b) * gh * gw * k];
       for (std::size_t l = 0; l < lags.size(); ++l) {
         const Lag& g = lags[l];
         double acc = 0;
@@ -180,8 +180,8 @@ TEST(TurbulenceField, TemporalCorrelationIsAr1) {
     s.run();
     const auto all1 = f.coefficients().download();
     for (int b = 0; b < kBatch; ++b) {
-      const float* a0 = &all0[std::size_t(b * points * k)];
-      const float* a1 = &all1[std::size_t(b * points * k)];
+      const float* a0 = &all0[std::size_t(b) * points * k];
+      const float* a1 = &all1[std::size_t(b) * points * k];
       // Normalized lag-1 products at every point (unit variance per mode).
       double ct = 0, vt = 0, ch = 0, vh = 0;
       for (int q = 0; q < points; ++q) {
