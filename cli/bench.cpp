@@ -54,9 +54,10 @@ void run_bench_sim(const BenchSimArgs& a) {
   wc.source_step_px = a.wave_step_px;
   wc.wave.grid = a.wave_grid;
   sim::WaveImageReport wr;
-  std::fprintf(stderr, "bench sim: wave-optics reference, 256² grey, sources every %.0f px ...\n", a.wave_step_px);
-  const double wave_seconds =
-      bench::median_seconds([&] { sim::wave_image(device, wp, wc, test_scene(1, 256, 256), &wr); }, 1, 0);
+  std::fprintf(stderr, "bench sim: wave-optics reference, 256² grey, sources every %.0f px ...\n",
+               a.wave_step_px);
+  const double wave_seconds = bench::median_seconds(
+      [&] { sim::wave_image(device, wp, wc, test_scene(1, 256, 256), &wr); }, 1, 0);
   const int wave_sources = wr.sources_x * wr.sources_y;
   const double per_source = wr.psf_seconds / wave_sources;
   const double imaging_per_px = wr.image_seconds / (256.0 * 256.0);
@@ -82,7 +83,8 @@ void run_bench_sim(const BenchSimArgs& a) {
       // per source above), plus the pixel sum (linear in pixels and channels).
       const double matched_sources = double(s.field().grid_h()) * s.field().grid_w();
       // (One wavelength: the PSFs serve every channel; the sum runs per channel.)
-      const double wave_matched = per_source * matched_sources + imaging_per_px * double(size) * size * channels;
+      const double wave_matched =
+          per_source * matched_sources + imaging_per_px * double(size) * size * channels;
       const std::string tag = std::to_string(size) + "² " + (channels == 1 ? "grey" : "colour");
       bench::Result r{"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
                       "wave ref., matched grid (extrap.)", 1 / wave_matched};
@@ -101,27 +103,33 @@ void run_bench_sim(const BenchSimArgs& a) {
         j["wave_seconds_measured"] = wave_seconds;
         j["speedup_vs_wave_measured_grid"] = wave_seconds / sec;
         rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
-                        "wave ref., " + std::to_string(wr.sources_x) + "² sources (meas.)", 1 / wave_seconds});
+                        "wave ref., " + std::to_string(wr.sources_x) + "² sources (meas.)",
+                        1 / wave_seconds});
       }
       per_size.push_back(j);
       std::fprintf(stderr, "bench sim: %s %.3f s/frame\n", tag.c_str(), sec);
     }
   }
-  bench::print_table("vkjr2 bench sim — fast simulator vs the wave-optics reference (" + a.preset + ")", device,
-                     rows);
+  bench::print_table(
+      "vkjr2 bench sim — fast simulator vs the wave-optics reference (" + a.preset + ")", device,
+      rows);
   std::printf(
-      "\nwave-optics reference: %d² propagation grid, %zu screens, δ = %.2f mm, pupil FFT %d, PSFs %dx%d;\n"
-      "measured on 256² grey with %dx%d sources every %.0f px: %.1f s (%.3f s per source, %.2f s imaging).\n"
-      "Matched grid: one source per fast-simulator field point (the same PSF-field resolution), extrapolated\n"
-      "from the measured per-source cost. speedup_vs_wave_fftw: not measured (the reference has no FFTW path).\n",
-      plan.grid, plan.z_m.size(), plan.spacing_m * 1e3, plan.pupil_fft, wr.psf_size, wr.psf_size, wr.sources_x,
-      wr.sources_y, a.wave_step_px, wave_seconds, per_source, wr.image_seconds);
+      "\nwave-optics reference: %d² propagation grid, %zu screens, δ = %.2f mm, pupil FFT %d, PSFs "
+      "%dx%d;\n"
+      "measured on 256² grey with %dx%d sources every %.0f px: %.1f s (%.3f s per source, %.2f s "
+      "imaging).\n"
+      "Matched grid: one source per fast-simulator field point (the same PSF-field resolution), "
+      "extrapolated\n"
+      "from the measured per-source cost. speedup_vs_wave_fftw: not measured (the reference has no "
+      "FFTW path).\n",
+      plan.grid, plan.z_m.size(), plan.spacing_m * 1e3, plan.pupil_fft, wr.psf_size, wr.psf_size,
+      wr.sources_x, wr.sources_y, a.wave_step_px, wave_seconds, per_source, wr.image_seconds);
   nlohmann::json out = bench::to_json(device, rows);
   out["sizes"] = per_size;
-  out["wave_reference"] = {{"grid", plan.grid},        {"screens", plan.z_m.size()},
+  out["wave_reference"] = {{"grid", plan.grid},           {"screens", plan.z_m.size()},
                            {"spacing_m", plan.spacing_m}, {"pupil_fft", plan.pupil_fft},
-                           {"psf_size", wr.psf_size},  {"sources", {wr.sources_y, wr.sources_x}},
-                           {"seconds", wave_seconds},  {"seconds_per_source", per_source}};
+                           {"psf_size", wr.psf_size},     {"sources", {wr.sources_y, wr.sources_x}},
+                           {"seconds", wave_seconds},     {"seconds_per_source", per_source}};
   if (!a.json_path.empty()) bench::write_json(a.json_path, out);
   if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
 }
@@ -132,20 +140,29 @@ void add_bench(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("bench", "Benchmarks with a peer measured in the same run");
   cmd->require_subcommand(1);
   auto a = std::make_shared<BenchSimArgs>();
-  CLI::App* sim_cmd = cmd->add_subcommand("sim", "Fast simulator frames/s and speedup over the wave-optics reference");
+  CLI::App* sim_cmd = cmd->add_subcommand(
+      "sim", "Fast simulator frames/s and speedup over the wave-optics reference");
   sim_cmd->footer(
       "Example:\n  vkjr2 bench sim --json-file bench_sim.json\n"
-      "Kernels, runtime and face networks: build/release/bench/{kernels,runtime,nets}_bench (bench/RESULTS.md).");
+      "Kernels, runtime and face networks: build/release/bench/{kernels,runtime,nets}_bench "
+      "(bench/RESULTS.md).");
   sim_cmd->add_option("--preset", a->preset, "Turbulence preset")
       ->default_val("moderate")
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
-  sim_cmd->add_option("--sizes", a->sizes, "Square frame sizes")->default_val(std::vector<int>{256, 512, 1024});
-  sim_cmd->add_option("--frames", a->frames, "Timed frames per size (median)")->default_val(3)->check(CLI::Range(1, 1000));
-  sim_cmd->add_option("--wave-step", a->wave_step_px, "Source spacing of the measured wave-optics run (px)")
+  sim_cmd->add_option("--sizes", a->sizes, "Square frame sizes")
+      ->default_val(std::vector<int>{256, 512, 1024});
+  sim_cmd->add_option("--frames", a->frames, "Timed frames per size (median)")
+      ->default_val(3)
+      ->check(CLI::Range(1, 1000));
+  sim_cmd
+      ->add_option("--wave-step", a->wave_step_px,
+                   "Source spacing of the measured wave-optics run (px)")
       ->default_val(16)
       ->check(CLI::Range(2.0, 256.0));
-  sim_cmd->add_option("--wave-grid", a->wave_grid, "Wave-optics propagation grid")->default_val(256);
-  sim_cmd->add_option("--device", a->device, "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  sim_cmd->add_option("--wave-grid", a->wave_grid, "Wave-optics propagation grid")
+      ->default_val(256);
+  sim_cmd->add_option("--device", a->device,
+                      "Vulkan device index or name substring (else VKJR2_DEVICE)");
   sim_cmd->add_option("--json-file", a->json_path, "Also write the results as JSON here");
   sim_cmd->add_flag("--json", a->json_out, "Print the JSON after the table");
   sim_cmd->callback([a] { run_bench_sim(*a); });

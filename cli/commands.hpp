@@ -5,11 +5,12 @@
 
 namespace vkjr2::cli {
 
-void add_devices(CLI::App& app);    // devices.cpp
-void add_faces(CLI::App& app);      // faces.cpp: detect, embed, verify, identify
-void add_simulate(CLI::App& app);   // simulate.cpp
-void add_sim_train(CLI::App& app);  // sim_train.cpp
-void add_wave(CLI::App& app);       // wave.cpp
-void add_bench(CLI::App& app);      // bench.cpp: bench sim
+void add_devices(CLI::App& app);       // devices.cpp
+void add_faces(CLI::App& app);         // faces.cpp: detect, embed, verify, identify
+void add_simulate(CLI::App& app);      // simulate.cpp
+void add_sim_train(CLI::App& app);     // sim_train.cpp
+void add_wave(CLI::App& app);          // wave.cpp
+void add_bench(CLI::App& app);         // bench.cpp: bench sim
+void add_sim_validate(CLI::App& app);  // sim_validate.cpp
 
 }  // namespace vkjr2::cli

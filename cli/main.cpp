@@ -35,6 +35,7 @@ int run(int argc, char** argv) {
   vkjr2::cli::add_simulate(app);
   vkjr2::cli::add_sim_train(app);
   vkjr2::cli::add_wave(app);
+  vkjr2::cli::add_sim_validate(app);
   vkjr2::cli::add_bench(app);
   if (argc > 1 && argv[1][0] != '-' && !has_subcommand(app, argv[1])) {
     std::fprintf(stderr, "vkjr2: error: unknown command '%s'. Run `vkjr2 --help` for the list.\n",

@@ -155,4 +155,52 @@ TEST(CliSimTrain, TrainsASmallModelTheSimulatorUses) {
   EXPECT_NE(r.code, 0);
 }
 
+TEST(CliWave, ImagesASceneThroughTheReference) {
+  TempDir tmp("wave");
+  const fs::path in = write_scene(tmp.path, 40, 48);
+  const fs::path out = tmp.path / "wave.png";
+  auto r = run_cli("wave " + in.string() + " " + out.string() +
+                   " --grid 64 --screens 3 --source-step 24 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  EXPECT_EQ(j["sources"][0], 3);
+  EXPECT_EQ(j["sources"][1], 3);
+  const cv::Mat a = cv::imread(in.string()), b = cv::imread(out.string());
+  ASSERT_FALSE(b.empty());
+  EXPECT_GT(mean_abs_diff(a, b), 2.0);
+  r = run_cli("wave " + (tmp.path / "clip.avi").string() + " " + out.string() + " --force");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("single frames"), std::string::npos) << r.output;
+  r = run_cli("wave " + in.string() + " " + (tmp.path / "o.png").string() + " --grid 61");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_FALSE(fs::exists(tmp.path / "o.png"));
+}
+
+TEST(CliSimValidate, QuickTablePasses) {
+  auto r = run_cli("sim-validate --quick --no-psf --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  EXPECT_EQ(j["failed"], 0);
+  EXPECT_EQ(j["checks"].size(), 10u);
+  r = run_cli("sim-validate --fields 1");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
+TEST(CliBenchSim, ReportsFramesPerSecondAndSpeedup) {
+  TempDir tmp("bench_sim");
+  const fs::path out = tmp.path / "bench.json";
+  auto r = run_cli("bench sim --sizes 64 --frames 1 --wave-step 32 --wave-grid 64 --json-file " +
+                   out.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(out);
+  const json j = json::parse(f, nullptr, false);
+  ASSERT_EQ(j["sizes"].size(), 2u);  // grey and colour
+  for (const auto& e : j["sizes"]) {
+    EXPECT_GT(e["fps"].get<double>(), 0);
+    EXPECT_GT(e["speedup_vs_wave_same_device"].get<double>(), 0);
+  }
+  r = run_cli("bench sim --preset hurricane");
+  EXPECT_EQ(r.code, 2);
+}
+
 }  // namespace
