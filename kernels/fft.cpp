@@ -367,6 +367,21 @@ void FftPlan::run(Stream& stream, const Tensor& in, const Tensor& out, bool inve
   if (staged) stream.copy(src, out);
 }
 
+void fft2_host(const Device& device, const Shape& shape, std::vector<float>& data, bool inverse,
+               FftNorm norm) {
+  if (shape.rank() != 3) throw InvalidArgument("fft2_host", "shape must be {B, H, W}, got " + shape.str());
+  const Tensor t = Tensor::from(device, Shape{shape[0], shape[1], shape[2], 2}, data);
+  const FftPlan plan(device, shape, FftKind::c2c, norm);
+  Stream stream(device);
+  if (inverse) {
+    plan.inverse(stream, t, t);
+  } else {
+    plan.forward(stream, t, t);
+  }
+  stream.run();
+  t.download(data);
+}
+
 void fft2(Stream& stream, const Tensor& in, const Tensor& out, bool inverse, FftNorm norm) {
   const Shape& s = in.shape();
   if (!in.defined() || (s.rank() != 3 && s.rank() != 4) || s[-1] != 2) {

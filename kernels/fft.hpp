@@ -88,4 +88,10 @@ class FftPlan {
 void fft2(Stream& stream, const Tensor& in, const Tensor& out, bool inverse,
           FftNorm norm = FftNorm::backward);
 
+// For host data: uploads `data` (complex [B, H, W, 2] for shape {B, H, W}),
+// runs one batched c2c FFT on the device, waits, and downloads the result
+// into `data`.
+void fft2_host(const Device& device, const Shape& shape, std::vector<float>& data, bool inverse,
+               FftNorm norm = FftNorm::backward);
+
 }  // namespace vkjr2::kernels

@@ -8,7 +8,11 @@
 // both numerator and denominator lose the same taps.
 #pragma once
 
+#include <vkjr2/kernels/fft.hpp>
 #include <vkjr2/runtime/stream.hpp>
+
+#include <cstdint>
+#include <memory>
 
 namespace vkjr2::kernels {
 
@@ -27,5 +31,43 @@ void psf_conv(Stream& stream, const Tensor& x, const Tensor& beta, const Tensor&
 void psf_conv_backward(Stream& stream, const Tensor& x, const Tensor& beta, const Tensor& psi,
                        const Tensor& y, const Tensor& norm, const Tensor& dy, const Tensor& dx,
                        const Tensor& dbeta, PsfConvParams params = {});
+
+// FFT path of the forward (the same y and norm as psf_conv, to float
+// rounding): one r2c per product image β_k ⊙ x_c (and per β_k for the
+// normalization), the sum over k taken in the frequency domain against the
+// basis' spectra Ψ̂_k, one c2r per channel:
+//   y_c = F⁻¹[Σ_k Ψ̂_k · F(β_k ⊙ x_c)],  norm = F⁻¹[Σ_k Ψ̂_k · F(β_k)]
+// on a zero-padded Hp × Wp grid (Hp ≥ H + S − 1: no wrap-around), k taken in
+// chunks so that no temporary exceeds 96 MiB. The spectra Ψ̂_k are made once,
+// for one ψ and one image shape.
+class PsfConvFft {
+ public:
+  // psi [K, S, S]; images [batch, channels, height, width].
+  // max_temporary_bytes bounds each temporary (k is chunked to fit).
+  PsfConvFft(const Device& device, const Tensor& psi, std::int64_t batch, std::int64_t channels,
+             std::int64_t height, std::int64_t width,
+             std::int64_t max_temporary_bytes = 96ll << 20);
+  ~PsfConvFft();
+  PsfConvFft(const PsfConvFft&) = delete;
+  PsfConvFft& operator=(const PsfConvFft&) = delete;
+  void forward(Stream& stream, const Tensor& x, const Tensor& beta, const Tensor& y,
+               const Tensor& norm, PsfConvParams params = {}) const;
+  std::int64_t padded_height() const { return hp_; }
+  std::int64_t padded_width() const { return wp_; }
+  std::int64_t chunk() const { return chunk_; }  // kernels per pass
+
+ private:
+  Device device_;
+  std::int64_t n_, c_, k_, s_, h_, w_, hp_, wp_, chunk_;
+  Tensor psi_hat_;  // [K, Hp, Wp/2+1, 2]
+  std::unique_ptr<FftPlan> forward_, forward_last_, inverse_;
+};
+
+// Which path is cheaper for these shapes, by a cost model measured on
+// lavapipe (docs/sim.md §7): the direct path's work grows as K·S² per pixel,
+// the FFT path's as K·(C + 1)·log(Hp·Wp).
+enum class PsfConvPath : std::uint8_t { direct, fft };
+PsfConvPath psf_conv_path(std::int64_t n, std::int64_t c, std::int64_t k, std::int64_t s,
+                          std::int64_t h, std::int64_t w);
 
 }  // namespace vkjr2::kernels

@@ -1,5 +1,6 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/correlation.hpp>
+#include <vkjr2/sim/quadrature.hpp>
 #include <vkjr2/sim/zernike.hpp>
 
 #include <algorithm>
@@ -23,31 +24,6 @@ constexpr int kPerOctave = 16;
 constexpr double kTableMaxS = 20.0;
 constexpr int kMinTableOrder = 7;  // j ≤ 36
 constexpr double kUpperU = 24.0;   // ∫ beyond u = 24 is < 1e-8 of G(0)
-
-// Gauss–Legendre nodes and weights on [−1, 1] (Newton on P_n).
-struct GaussLegendre {
-  std::vector<double> x, w;
-  explicit GaussLegendre(int n) : x(std::size_t(n)), w(std::size_t(n)) {
-    for (int i = 0; i < n; ++i) {
-      double t = std::cos(kPi * (i + 0.75) / (n + 0.5));
-      double dp = 0;
-      for (int it = 0; it < 100; ++it) {
-        double p0 = 1, p1 = t;
-        for (int k = 2; k <= n; ++k) {
-          const double p2 = ((2 * k - 1) * t * p1 - (k - 1) * p0) / k;
-          p0 = p1;
-          p1 = p2;
-        }
-        dp = n * (t * p1 - p0) / (t * t - 1);
-        const double dt = p1 / dp;
-        t -= dt;
-        if (std::fabs(dt) < 1e-15) break;
-      }
-      x[std::size_t(i)] = t;
-      w[std::size_t(i)] = 2 / ((1 - t * t) * dp * dp);
-    }
-  }
-};
 
 const GaussLegendre& gl16() {
   static const GaussLegendre g(16);

@@ -2,6 +2,7 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/noll.hpp>
 #include <vkjr2/sim/params.hpp>
+#include <vkjr2/sim/quadrature.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -38,35 +39,6 @@ void require_positive(double v, const std::string& field, const std::string& fix
 
 double wavenumber(double wavelength_m) { return 2 * std::numbers::pi / wavelength_m; }
 
-// 8-point Gauss–Legendre nodes and weights on [−1, 1], found by Newton's
-// method on P_8 (computed once; no typed-in tables).
-struct GaussLegendre8 {
-  std::array<double, 8> x{};
-  std::array<double, 8> w{};
-  GaussLegendre8() {
-    constexpr int n = 8;
-    for (int i = 0; i < n; ++i) {
-      double t = std::cos(std::numbers::pi * (i + 0.75) / (n + 0.5));
-      double dp = 1;
-      for (int it = 0; it < 100; ++it) {
-        double p0 = 1;
-        double p1 = t;
-        for (int k = 2; k <= n; ++k) {
-          const double p2 = ((2 * k - 1) * t * p1 - (k - 1) * p0) / k;
-          p0 = p1;
-          p1 = p2;
-        }
-        dp = n * (t * p1 - p0) / (t * t - 1);
-        const double step = p1 / dp;
-        t -= step;
-        if (std::fabs(step) < 1e-16) break;
-      }
-      x[static_cast<std::size_t>(i)] = t;
-      w[static_cast<std::size_t>(i)] = 2 / ((1 - t * t) * dp * dp);
-    }
-  }
-};
-
 // Cn² along the path as a function of z (0 = scene, L = aperture).
 struct Profile {
   std::vector<double> z;
@@ -95,7 +67,7 @@ double r0_from(double integral, double wavelength_m) {
 }
 
 PathIntegrals integrate(const Profile& profile, double range_m) {
-  static const GaussLegendre8 gl;
+  static const GaussLegendre gl(8);
   // Breakpoints: the profile samples plus a uniform grid fine enough for the
   // endpoint behaviour of z^(5/6) and (1 − z/L)^(5/6) (relative error < 1e-8).
   std::vector<double> cuts;

@@ -196,14 +196,7 @@ ScreenParts phase_screen_parts(const Device& device, const ScreenGrid& grid,
       dst[2 * i + 1] = static_cast<float>(s.imag());
     }
   }
-  const Shape shape{pairs, m, m, 2};
-  const Tensor field = Tensor::from(device, shape, spectra);
-  const kernels::FftPlan plan(device, Shape{pairs, m, m}, kernels::FftKind::c2c,
-                              kernels::FftNorm::none);
-  Stream stream(device);
-  plan.inverse(stream, field, field);
-  stream.run();
-  field.download(spectra);
+  kernels::fft2_host(device, Shape{pairs, m, m}, spectra, /*inverse=*/true, kernels::FftNorm::none);
 
   parts.periodic.resize(layers.size() * plane);
   for (std::size_t s = 0; s < layers.size(); ++s) {

@@ -77,6 +77,10 @@ Simulator::Simulator(const Device& device, const Params& params,
     beta_ = Tensor::empty(device_, {b, k, h, w});
     norm_ = Tensor::empty(device_, {b, 1, h, w});
     blurred_ = Tensor::empty(device_, {b, c, h, w});
+    const std::int64_t s = blur_->basis().shape()[1];
+    if (kernels::psf_conv_path(b, c, k, s, h, w) == kernels::PsfConvPath::fft) {
+      fft_ = std::make_unique<kernels::PsfConvFft>(device_, blur_->basis(), b, c, h, w);
+    }
   }
 }
 
@@ -120,7 +124,11 @@ void Simulator::frame(Stream& stream, const Tensor& x, const Tensor& y) {
 void Simulator::blur(Stream& stream, const Tensor& x, const Tensor& y) {
   blur_->weights(stream, field_->coefficients(), beta_grid_);
   kernels::resize(stream, beta_grid_, kernels::ResizeMode::bilinear_align_corners, beta_);
-  kernels::psf_conv(stream, x, beta_, blur_->basis(), y, norm_, {.normalize = true});
+  if (fft_) {
+    fft_->forward(stream, x, beta_, y, norm_, {.normalize = true});
+  } else {
+    kernels::psf_conv(stream, x, beta_, blur_->basis(), y, norm_, {.normalize = true});
+  }
 }
 
 void Simulator::frame_backward(Stream& stream, const Tensor& dy, const Tensor& dx) {

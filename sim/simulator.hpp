@@ -9,6 +9,7 @@
 // Differentiable with respect to the input image (frame_backward).
 #pragma once
 
+#include <vkjr2/kernels/psf_conv.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/field.hpp>
 #include <vkjr2/sim/params.hpp>
@@ -79,6 +80,7 @@ class Simulator {
   SimOptions options_;
   std::shared_ptr<const BlurModel> blur_;
   std::unique_ptr<TurbulenceField> field_;
+  std::unique_ptr<kernels::PsfConvFft> fft_;  // the blur's FFT path, when it is the cheaper one
   std::uint64_t seed_ = 0;
   std::int64_t frame_ = -1;
   Tensor input_;  // the last frame's x (its backward needs it)

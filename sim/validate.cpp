@@ -13,25 +13,21 @@ namespace vkjr2::sim {
 
 bool ValidationRow::pass() const { return std::fabs(measured - expected) <= tolerance; }
 
-namespace {
-
-// Mean and standard error of independent per-sample estimates.
-struct Mean {
-  double mean = 0, sigma = 0;
-};
-Mean mean_of(const std::vector<double>& v) {
+MeanEstimate mean_and_error(const std::vector<double>& samples) {
   double s = 0, s2 = 0;
-  for (double x : v) {
+  for (double x : samples) {
     s += x;
     s2 += x * x;
   }
-  const double n = double(v.size()), m = s / n;
+  const double n = double(samples.size()), m = s / n;
   return {m, std::sqrt(std::max(0.0, s2 / n - m * m) / std::max(1.0, n - 1))};
 }
 
+namespace {
+
 ValidationRow row_4sigma(std::string check, const std::vector<double>& samples, double expected,
                          std::string note = {}) {
-  const Mean m = mean_of(samples);
+  const MeanEstimate m = mean_and_error(samples);
   return {std::move(check), m.mean, m.sigma, expected, 4 * m.sigma, std::move(note)};
 }
 

@@ -26,6 +26,12 @@ struct ValidationRow {
   bool pass() const;
 };
 
+// Mean of independent estimates and its standard error.
+struct MeanEstimate {
+  double mean = 0, sigma = 0;
+};
+MeanEstimate mean_and_error(const std::vector<double>& samples);
+
 struct ValidationConfig {
   // Fields: `fields` independent 96×128 frames (tilt and Noll statistics).
   int fields = 600;

@@ -344,13 +344,7 @@ std::vector<float> wave_psfs(const Device& device, const Params& params, int cha
     }
   }
   const auto b64 = static_cast<std::int64_t>(batch);
-  const Tensor spectrum = Tensor::from(device, Shape{b64, nf, nf, 2}, pupil);
-  const kernels::FftPlan fft(device, Shape{b64, nf, nf}, kernels::FftKind::c2c,
-                             kernels::FftNorm::none);
-  Stream stream(device);
-  fft.forward(stream, spectrum, spectrum);
-  stream.run();
-  spectrum.download(pupil);
+  kernels::fft2_host(device, Shape{b64, nf, nf}, pupil, /*inverse=*/false, kernels::FftNorm::none);
 
   const std::size_t out_plane = std::size_t(psf_size) * psf_size;
   std::vector<float> psfs(batch * out_plane);

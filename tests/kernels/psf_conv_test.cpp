@@ -1,11 +1,14 @@
 #include <vkjr2/kernels/psf_conv.hpp>
 #include <vkjr2/kernels/ref/psf_conv_ref.hpp>
+#include <vkjr2/runtime/error.hpp>
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
+#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
 #include "support/test_device.hpp"
 
@@ -76,6 +79,71 @@ TEST(PsfConv, MatchesReferenceOnRandomShapes) {
       ASSERT_NEAR(norm[i], rnorm[i], 1e-4f * (1 + std::fabs(rnorm[i]))) << "norm[" << i << "]";
     }
   }
+}
+
+// The FFT path against the C++ reference, odd sizes and kernel chunks
+// included (a large basis at 1×1 pixel forces several chunks).
+TEST(PsfConv, FftPathMatchesReference) {
+  std::mt19937 rng(77);
+  Device& dev = test::device();
+  for (int trial = 0; trial < 8; ++trial) {
+    PsfConvDims d;
+    d.n = 1 + int(rng() % 2);
+    d.c = 1 + int(rng() % 4);
+    d.k = 1 + int(rng() % 12);
+    d.h = 1 + int(rng() % 45);
+    d.w = 1 + int(rng() % 50);
+    d.s = 1 + 2 * int(rng() % 6);
+    const bool normalize = trial % 2 == 0;
+    SCOPED_TRACE("trial " + std::to_string(trial) + " seed 77: N" + std::to_string(d.n) + " C" +
+                 std::to_string(d.c) + " K" + std::to_string(d.k) + " " + std::to_string(d.h) +
+                 "x" + std::to_string(d.w) + " S" + std::to_string(d.s));
+    const Inputs in = random_inputs(d, 300 + trial);
+    Tensor tx = Tensor::from(dev, x_shape(d), in.x), tb = Tensor::from(dev, beta_shape(d), in.beta);
+    Tensor tp = Tensor::from(dev, psi_shape(d), in.psi);
+    Tensor ty = Tensor::empty(dev, x_shape(d)), tn = Tensor::empty(dev, norm_shape(d));
+    const kernels::PsfConvFft fft(dev, tp, d.n, d.c, d.h, d.w);
+    EXPECT_GE(fft.padded_height(), d.h + d.s - 1);
+    Stream s(dev);
+    fft.forward(s, tx, tb, ty, tn, {normalize});
+    s.run();
+    std::vector<float> ry, rnorm;
+    ref::psf_conv(d, in.x, in.beta, in.psi, normalize, ry, rnorm);
+    // FFT rounding grows with the padded size: relative to the largest value.
+    double scale = 0;
+    for (float v : ry) scale = std::max(scale, double(std::fabs(v)));
+    test::expect_all_near(ty.download(), ry, 1e-4, 1e-5 * (1 + scale));
+    test::expect_all_near(tn.download(), rnorm, 1e-4, 1e-5 * (1 + scale));
+  }
+  // Kernels in chunks (small temporaries force 4 passes of 3 kernels).
+  {
+    const PsfConvDims d{1, 3, 11, 13, 17, 5};
+    const Inputs in = random_inputs(d, 400);
+    Tensor tx = Tensor::from(dev, x_shape(d), in.x), tb = Tensor::from(dev, beta_shape(d), in.beta);
+    Tensor tp = Tensor::from(dev, psi_shape(d), in.psi);
+    Tensor ty = Tensor::empty(dev, x_shape(d)), tn = Tensor::empty(dev, norm_shape(d));
+    const std::int64_t per_kernel = 4 * 2 * 18 * (21 / 2 + 1) * 4;  // (C+1)·2·Hp·(Wp/2+1) floats
+    const kernels::PsfConvFft fft(dev, tp, d.n, d.c, d.h, d.w, 3 * per_kernel + 64);
+    ASSERT_EQ(fft.padded_height(), 18);
+    ASSERT_EQ(fft.padded_width(), 21);
+    EXPECT_EQ(fft.chunk(), 3);
+    Stream s(dev);
+    fft.forward(s, tx, tb, ty, tn, {true});
+    s.run();
+    std::vector<float> ry, rnorm;
+    ref::psf_conv(d, in.x, in.beta, in.psi, true, ry, rnorm);
+    test::expect_all_near(ty.download(), ry, 1e-4, 1e-5);
+  }
+  // Bad shapes.
+  Tensor psi_even = Tensor::empty(dev, {2, 4, 4});
+  EXPECT_THROW(kernels::PsfConvFft(dev, psi_even, 1, 1, 8, 8), InvalidArgument);
+  Tensor psi = Tensor::empty(dev, {2, 3, 3});
+  EXPECT_THROW(kernels::PsfConvFft(dev, psi, 1, 5, 8, 8), InvalidArgument);
+  const kernels::PsfConvFft ok(dev, psi, 1, 1, 8, 8);
+  Tensor x = Tensor::empty(dev, {1, 1, 8, 9}), b = Tensor::empty(dev, {1, 2, 8, 8});
+  Tensor y = Tensor::empty(dev, {1, 1, 8, 8}), n = Tensor::empty(dev, {1, 1, 8, 8});
+  Stream s(dev);
+  EXPECT_THROW(ok.forward(s, x, b, y, n), InvalidArgument);
 }
 
 TEST(PsfConv, DeltaKernelWithUnitWeightsIsIdentity) {

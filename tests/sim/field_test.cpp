@@ -1,6 +1,7 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/field.hpp>
 #include <vkjr2/sim/noll.hpp>
+#include <vkjr2/sim/validate.hpp>
 
 #include <gtest/gtest.h>
 
@@ -12,20 +13,10 @@
 namespace vkjr2::sim {
 namespace {
 
-// Mean and standard error of per-frame estimates (frames are independent
-// when rho = 0, so their spread gives the estimator's σ).
-struct Estimate {
-  double mean = 0, sigma = 0;
-};
-Estimate of(const std::vector<double>& v) {
-  double s = 0, s2 = 0;
-  for (double x : v) {
-    s += x;
-    s2 += x * x;
-  }
-  const double n = double(v.size()), m = s / n;
-  return {m, std::sqrt(std::max(0.0, s2 / n - m * m) / (n - 1))};
-}
+// Frames are independent when rho = 0, so the spread of per-frame
+// estimates gives the estimator's σ (mean_and_error).
+using Estimate = MeanEstimate;
+Estimate of(const std::vector<double>& v) { return mean_and_error(v); }
 
 // Independent fields per run: a batch of 10 images × 30 frames = 300.
 constexpr int kBatch = 10;

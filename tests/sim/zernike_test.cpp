@@ -1,4 +1,5 @@
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/sim/quadrature.hpp>
 #include <vkjr2/sim/zernike.hpp>
 
 #include <gtest/gtest.h>
@@ -101,27 +102,14 @@ TEST(Zernike, RadialRecurrenceMatchesFactorialSum) {
   EXPECT_EQ(zernike_radial(3, 2, 0.5), 0.0);  // n − m odd
 }
 
-// Gauss–Legendre nodes on [0, 1] (Newton on P_n), for exact polar quadrature.
+// Gauss–Legendre nodes on [0, 1], for exact polar quadrature.
 void gauss_legendre01(int n, std::vector<double>& x, std::vector<double>& w) {
+  const GaussLegendre g(n);
   x.clear();
   w.clear();
-  for (int i = 0; i < n; ++i) {
-    double t = std::cos(kPi * (i + 0.75) / (n + 0.5));
-    double dp = 1;
-    for (int it = 0; it < 100; ++it) {
-      double p0 = 1, p1 = t;
-      for (int k = 2; k <= n; ++k) {
-        const double p2 = ((2 * k - 1) * t * p1 - (k - 1) * p0) / k;
-        p0 = p1;
-        p1 = p2;
-      }
-      dp = n * (t * p1 - p0) / (t * t - 1);
-      const double step = p1 / dp;
-      t -= step;
-      if (std::fabs(step) < 1e-16) break;
-    }
-    x.push_back((t + 1) / 2);
-    w.push_back(1 / ((1 - t * t) * dp * dp));
+  for (std::size_t i = 0; i < g.x.size(); ++i) {
+    x.push_back((g.x[i] + 1) / 2);
+    w.push_back(g.w[i] / 2);
   }
 }
 
