@@ -145,9 +145,10 @@ PsfConvFft::PsfConvFft(const Device& device, const Tensor& psi, std::int64_t bat
   hp_ = fft_next_length(h_ + s_ - 1);
   wp_ = fft_next_length(w_ + s_ - 1);
   const std::int64_t bins = hp_ * (wp_ / 2 + 1);
-  const std::int64_t per_kernel = n_ * (c_ + 1) * std::max(bins * 2, hp_ * wp_) * 4;
+  // The FFT's own scratch is a full complex plane per image (hp·wp·2 floats).
+  const std::int64_t per_kernel = n_ * (c_ + 1) * std::max(bins, hp_ * wp_) * 2 * 4;
   chunk_ = std::clamp<std::int64_t>(max_temporary_bytes / per_kernel, 1, k_);
-  if (n_ * (c_ + 1) * bins * 8 > max_temporary_bytes || per_kernel > max_temporary_bytes) {
+  if (per_kernel > max_temporary_bytes) {
     throw InvalidArgument(op,
                           "images " + std::to_string(n_) + "x" + std::to_string(c_) + "x" +
                               std::to_string(h_) + "x" + std::to_string(w_) +
@@ -236,7 +237,7 @@ PsfConvPath psf_conv_path(std::int64_t n, std::int64_t c, std::int64_t k, std::i
   const double direct = double(n * h * w) * double(k * s * s) * kDirectSecondsPerTap;
   const double fft =
       double(n * k * (c + 1)) * hp * wp * std::log2(hp * wp) * kFftSecondsPerPointLog;
-  const double bytes = double(n * (c + 1)) * hp * (wp / 2 + 1) * 8;
+  const double bytes = double(n * (c + 1)) * hp * wp * 8;  // one kernel's FFT scratch
   return fft < direct && bytes <= double(kMaxTemporaryBytes) ? PsfConvPath::fft
                                                              : PsfConvPath::direct;
 }

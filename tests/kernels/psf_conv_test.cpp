@@ -122,7 +122,7 @@ TEST(PsfConv, FftPathMatchesReference) {
     Tensor tx = Tensor::from(dev, x_shape(d), in.x), tb = Tensor::from(dev, beta_shape(d), in.beta);
     Tensor tp = Tensor::from(dev, psi_shape(d), in.psi);
     Tensor ty = Tensor::empty(dev, x_shape(d)), tn = Tensor::empty(dev, norm_shape(d));
-    const std::int64_t per_kernel = 4 * 2 * 18 * (21 / 2 + 1) * 4;  // (C+1)·2·Hp·(Wp/2+1) floats
+    const std::int64_t per_kernel = 4 * 18 * 21 * 2 * 4;  // (C+1) full complex Hp×Wp planes, bytes
     const kernels::PsfConvFft fft(dev, tp, d.n, d.c, d.h, d.w, 3 * per_kernel + 64);
     ASSERT_EQ(fft.padded_height(), 18);
     ASSERT_EQ(fft.padded_width(), 21);
