@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -165,14 +166,25 @@ PsfConvFft::PsfConvFft(const Device& device, const Tensor& psi, std::int64_t bat
         const std::int64_t y = (i - r + hp_) % hp_, x = (j - r + wp_) % wp_;
         padded[std::size_t((k * hp_ + y) * wp_ + x)] = p[std::size_t((k * s_ + i) * s_ + j)];
       }
-  const Tensor psi_padded = Tensor::from(device_, {k_, hp_, wp_}, padded);
-  psi_hat_ = Tensor::empty(device_, {k_, hp_, wp_ / 2 + 1, 2});
-  {
-    const FftPlan plan(device_, {k_, hp_, wp_}, FftKind::r2c, FftNorm::none);
+  // In chunks of kernels, as the transforms below (the FFT's scratch is a
+  // full complex plane per image); assembled on the host, as chunk offsets
+  // need not meet the device's view alignment.
+  const std::int64_t spectrum = hp_ * (wp_ / 2 + 1) * 2;
+  std::vector<float> hat(std::size_t(k_ * spectrum));
+  const std::int64_t psi_chunk = std::clamp<std::int64_t>(max_temporary_bytes / (hp_ * wp_ * 2 * 4), 1, k_);
+  for (std::int64_t k0 = 0; k0 < k_; k0 += psi_chunk) {
+    const std::int64_t kc = std::min(psi_chunk, k_ - k0);
+    const Tensor part = Tensor::from(
+        device_, {kc, hp_, wp_},
+        std::span<const float>(padded).subspan(std::size_t(k0 * hp_ * wp_), std::size_t(kc * hp_ * wp_)));
+    const Tensor part_hat = Tensor::empty(device_, {kc, hp_, wp_ / 2 + 1, 2});
+    const FftPlan plan(device_, {kc, hp_, wp_}, FftKind::r2c, FftNorm::none);
     Stream stream(device_);
-    plan.forward(stream, psi_padded, psi_hat_);
+    plan.forward(stream, part, part_hat);
     stream.run();
+    part_hat.download(std::span<float>(hat).subspan(std::size_t(k0 * spectrum), std::size_t(kc * spectrum)));
   }
+  psi_hat_ = Tensor::from(device_, {k_, hp_, wp_ / 2 + 1, 2}, hat);
   forward_ = std::make_unique<FftPlan>(device_, Shape{n_ * chunk_ * (c_ + 1), hp_, wp_},
                                        FftKind::r2c, FftNorm::none);
   if (const std::int64_t last = k_ % chunk_; last != 0) {
