@@ -30,6 +30,7 @@ int run(int argc, char** argv) {
       "validation layer), VKJR2_PROFILE=1 (per-kernel GPU times), VKJR2_CACHE_DIR (models).\n"
       "Exit codes: 0 success, 1 runtime error (message on stderr), 2 bad command line, "
       "3 no Vulkan device.");
+  vkjr2::cli::add_demo(app);
   vkjr2::cli::add_devices(app);
   vkjr2::cli::add_faces(app);
   vkjr2::cli::add_simulate(app);

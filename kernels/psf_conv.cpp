@@ -171,18 +171,20 @@ PsfConvFft::PsfConvFft(const Device& device, const Tensor& psi, std::int64_t bat
   // need not meet the device's view alignment.
   const std::int64_t spectrum = hp_ * (wp_ / 2 + 1) * 2;
   std::vector<float> hat(std::size_t(k_ * spectrum));
-  const std::int64_t psi_chunk = std::clamp<std::int64_t>(max_temporary_bytes / (hp_ * wp_ * 2 * 4), 1, k_);
+  const std::int64_t psi_chunk =
+      std::clamp<std::int64_t>(max_temporary_bytes / (hp_ * wp_ * 2 * 4), 1, k_);
   for (std::int64_t k0 = 0; k0 < k_; k0 += psi_chunk) {
     const std::int64_t kc = std::min(psi_chunk, k_ - k0);
-    const Tensor part = Tensor::from(
-        device_, {kc, hp_, wp_},
-        std::span<const float>(padded).subspan(std::size_t(k0 * hp_ * wp_), std::size_t(kc * hp_ * wp_)));
+    const Tensor part = Tensor::from(device_, {kc, hp_, wp_},
+                                     std::span<const float>(padded).subspan(
+                                         std::size_t(k0 * hp_ * wp_), std::size_t(kc * hp_ * wp_)));
     const Tensor part_hat = Tensor::empty(device_, {kc, hp_, wp_ / 2 + 1, 2});
     const FftPlan plan(device_, {kc, hp_, wp_}, FftKind::r2c, FftNorm::none);
     Stream stream(device_);
     plan.forward(stream, part, part_hat);
     stream.run();
-    part_hat.download(std::span<float>(hat).subspan(std::size_t(k0 * spectrum), std::size_t(kc * spectrum)));
+    part_hat.download(
+        std::span<float>(hat).subspan(std::size_t(k0 * spectrum), std::size_t(kc * spectrum)));
   }
   psi_hat_ = Tensor::from(device_, {k_, hp_, wp_ / 2 + 1, 2}, hat);
   forward_ = std::make_unique<FftPlan>(device_, Shape{n_ * chunk_ * (c_ + 1), hp_, wp_},
@@ -213,10 +215,19 @@ void PsfConvFft::forward(Stream& stream, const Tensor& x, const Tensor& beta, co
   require_shape(norm, Shape{n_, 1, h_, w_}, op, "norm");
   const std::int64_t planes = c_ + 1, half = wp_ / 2 + 1, bins = hp_ * half;
   const Tensor acc = Tensor::empty(device_, {n_ * planes, hp_, half, 2});
+  // One pair of temporaries serves every chunk (the last one uses their start).
+  const Tensor u_all = Tensor::empty(device_, {n_ * chunk_ * planes, hp_, wp_});
+  const Tensor u_hat_all = Tensor::empty(device_, {n_ * chunk_ * planes, hp_, half, 2});
   for (std::int64_t k0 = 0; k0 < k_; k0 += chunk_) {
     const std::int64_t kc = std::min(chunk_, k_ - k0);
-    const Tensor u = Tensor::empty(device_, {n_ * kc * planes, hp_, wp_});
-    const Tensor u_hat = Tensor::empty(device_, {n_ * kc * planes, hp_, half, 2});
+    if (k0 > 0) {
+      // Release the previous chunk's FFT scratch before the next is taken:
+      // large images would otherwise hold every chunk's at once.
+      stream.run();
+    }
+    const Tensor u = kc == chunk_ ? u_all : u_all.view(Shape{n_ * kc * planes, hp_, wp_});
+    const Tensor u_hat =
+        kc == chunk_ ? u_hat_all : u_hat_all.view(Shape{n_ * kc * planes, hp_, half, 2});
     stream.dispatch(
         kPack, {texel(x), texel(beta), out(u)},
         PackPush{std::int32_t(n_), std::int32_t(k_), std::int32_t(h_), std::int32_t(w_),

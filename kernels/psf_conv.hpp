@@ -39,7 +39,9 @@ void psf_conv_backward(Stream& stream, const Tensor& x, const Tensor& beta, cons
 //   y_c = F⁻¹[Σ_k Ψ̂_k · F(β_k ⊙ x_c)],  norm = F⁻¹[Σ_k Ψ̂_k · F(β_k)]
 // on a zero-padded Hp × Wp grid (Hp ≥ H + S − 1: no wrap-around), k taken in
 // chunks so that no temporary exceeds 96 MiB. The spectra Ψ̂_k are made once,
-// for one ψ and one image shape.
+// for one ψ and one image shape. When k needs more than one chunk (large
+// images), forward() submits and waits for the stream between chunks, so
+// that one chunk's temporaries are released before the next is taken.
 class PsfConvFft {
  public:
   // psi [K, S, S]; images [batch, channels, height, width].

@@ -155,6 +155,32 @@ TEST(CliSimTrain, TrainsASmallModelTheSimulatorUses) {
   EXPECT_NE(r.code, 0);
 }
 
+TEST(CliDemo, SmallStudyWritesEveryOutput) {
+  TempDir tmp("demo");
+  const fs::path out = tmp.path / "demo";
+  auto r = run_cli("demo --out " + out.string() +
+                   " --photos 1 --frames 1 --video-frames 2 --width 320 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  ASSERT_EQ(j["strengths"].size(), 3u);
+  EXPECT_GT(j["faces"].get<int>(), 0);
+  // Recognition degrades with turbulence: strong is no better than weak.
+  EXPECT_LE(j["strengths"][2]["rank1_of_all"].get<double>(),
+            j["strengths"][0]["rank1_of_all"].get<double>());
+  EXPECT_GE(j["strengths"][2]["mean_descriptor_distance"].get<double>(),
+            j["strengths"][0]["mean_descriptor_distance"].get<double>());
+  for (const char* f : {"montage.png", "vtest_strong.avi", "results.json", "report.md"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  // Existing outputs are kept without --force; a missing video is a clear error.
+  r = run_cli("demo --out " + out.string() +
+              " --photos 1 --frames 1 --video-frames 1 --width 320 --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("--force"), std::string::npos) << r.output;
+  r = run_cli("demo --out " + out.string() + " --video /nonexistent.avi --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("opencv-doc"), std::string::npos) << r.output;
+}
+
 TEST(CliWave, ImagesASceneThroughTheReference) {
   TempDir tmp("wave");
   const fs::path in = write_scene(tmp.path, 40, 48);
