@@ -27,7 +27,8 @@ int run(int argc, char** argv) {
   app.set_version_flag("--version", std::string("vkjr2 ") + VKJR2_VERSION);
   app.footer(
       "Environment: VKJR2_DEVICE (index or name substring), VKJR2_VALIDATION=1 (Khronos "
-      "validation layer), VKJR2_PROFILE=1 (per-kernel GPU times), VKJR2_CACHE_DIR (models).\n"
+      "validation layer), VKJR2_PROFILE=1 (per-kernel GPU times), VKJR2_CACHE_DIR (face models),\n"
+      "VKJR2_ARTIFACT_DIR (trained simulator artifacts).\n"
       "Exit codes: 0 success, 1 runtime error (message on stderr), 2 bad command line, "
       "3 no Vulkan device.");
   vkjr2::cli::add_demo(app);
