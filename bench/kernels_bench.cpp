@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <memory>
 #include <string>
 
 #include "harness.hpp"
@@ -209,10 +210,10 @@ bench::Result add_vs_cpp(const Device& dev) {
           bytes / tp * 1e-9};
 }
 
-// PSF-basis blur, 3-channel image, K kernels of S×S: the direct path vs
-// cv::filter2D of every β_k ⊙ x_c plus multiply-add (OpenCV switches to a
-// DFT for large kernels).
-bench::Result psf_vs_filter2d(const Device& dev, int k, int sz, int hw) {
+// PSF-basis blur, 3-channel image, K kernels of S×S: the direct or the FFT
+// path vs cv::filter2D of every β_k ⊙ x_c plus multiply-add (OpenCV
+// switches to a DFT for large kernels).
+bench::Result psf_vs_filter2d(const Device& dev, int k, int sz, int hw, bool fft = false) {
   const auto x = noise(std::size_t(3) * hw * hw, 11);
   const auto beta = noise(std::size_t(k) * hw * hw, 12);
   const auto psi = noise(std::size_t(k) * sz * sz, 13);
@@ -222,9 +223,15 @@ bench::Result psf_vs_filter2d(const Device& dev, int k, int sz, int hw) {
   Tensor ty = Tensor::empty(dev, {1, 3, hw, hw});
   Tensor tn = Tensor::empty(dev, {1, 1, hw, hw});
   Stream s(dev);
+  const std::unique_ptr<kernels::PsfConvFft> plan =
+      fft ? std::make_unique<kernels::PsfConvFft>(dev, tp, 1, 3, hw, hw) : nullptr;
   const double t = bench::median_seconds(
       [&] {
-        kernels::psf_conv(s, tx, tb, tp, ty, tn);
+        if (plan) {
+          plan->forward(s, tx, tb, ty, tn);
+        } else {
+          kernels::psf_conv(s, tx, tb, tp, ty, tn);
+        }
         s.run();
       },
       3);
@@ -253,7 +260,8 @@ bench::Result psf_vs_filter2d(const Device& dev, int k, int sz, int hw) {
       },
       3);
   bench::Result r{"PSF basis K=" + std::to_string(k) + " " + std::to_string(sz) + "x" +
-                      std::to_string(sz) + " " + std::to_string(hw) + "^2 x3 (direct)",
+                      std::to_string(sz) + " " + std::to_string(hw) + "^2 x3 (" +
+                      (fft ? "fft" : "direct") + ")",
                   t * 1e3, "ms", "cv::filter2D + multiply-add", tpeer * 1e3};
   r.higher_is_better = false;
   return r;
@@ -299,6 +307,10 @@ int run(int argc, char** argv) {
   step("fft 1024", [&] { return fft_vs_fftw(dev, 1024); });
   step("add", [&] { return add_vs_cpp(dev); });
   step("psf basis", [&] { return psf_vs_filter2d(dev, 16, 9, 256); });
+  step("psf basis (fft, the simulator's basis)",
+       [&] { return psf_vs_filter2d(dev, 24, 21, 256, true); });
+  step("psf basis (fft, the issue's case)",
+       [&] { return psf_vs_filter2d(dev, 100, 33, 256, true); });
   if (full) step("psf basis (full)", [&] { return psf_vs_filter2d(dev, 100, 33, 256); });
   bench::print_table("vkjr2 kernels_bench (device FMA peak " + std::to_string(int(peak)) +
                          " GFLOP/s; OpenCV and FFTW on 1 thread)",
