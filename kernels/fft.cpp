@@ -369,7 +369,8 @@ void FftPlan::run(Stream& stream, const Tensor& in, const Tensor& out, bool inve
 
 void fft2_host(const Device& device, const Shape& shape, std::vector<float>& data, bool inverse,
                FftNorm norm) {
-  if (shape.rank() != 3) throw InvalidArgument("fft2_host", "shape must be {B, H, W}, got " + shape.str());
+  if (shape.rank() != 3)
+    throw InvalidArgument("fft2_host", "shape must be {B, H, W}, got " + shape.str());
   const Tensor t = Tensor::from(device, Shape{shape[0], shape[1], shape[2], 2}, data);
   const FftPlan plan(device, shape, FftKind::c2c, norm);
   Stream stream(device);
