@@ -1,5 +1,7 @@
 // vkjr2 bench sim: the fast simulator's frame rate and its speedup over the
-// wave-optics reference on the same device and parameters.
+// wave-optics reference on the same parameters, measured twice in the same
+// run: on the same device, and with its FFTs on FFTW on the CPU (the
+// fastest wave optics a user of this machine could run).
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/blur_model.hpp>
@@ -62,6 +64,16 @@ void run_bench_sim(const BenchSimArgs& a) {
   const double per_source = wr.psf_seconds / wave_sources;
   const double imaging_per_px = wr.image_seconds / (256.0 * 256.0);
   const sim::WavePlan& plan = wr.plans.front();
+  // The same run with its FFTs on FFTW (one thread) and nothing on the
+  // device; the first row of sources includes FFTW's planning (MEASURE).
+  sim::WaveImageConfig wc_fftw = wc;
+  wc_fftw.wave.fft = sim::FftBackend::fftw;
+  sim::WaveImageReport wr_fftw;
+  std::fprintf(stderr, "bench sim: the same with its FFTs on FFTW (CPU, 1 thread) ...\n");
+  const double fftw_seconds = bench::median_seconds(
+      [&] { sim::wave_image(device, wp, wc_fftw, test_scene(1, 256, 256), &wr_fftw); }, 1, 0);
+  const double per_source_fftw = wr_fftw.psf_seconds / wave_sources;
+  const double imaging_per_px_fftw = wr_fftw.image_seconds / (256.0 * 256.0);
 
   for (int size : a.sizes) {
     for (int channels : {1, 3}) {
@@ -85,10 +97,13 @@ void run_bench_sim(const BenchSimArgs& a) {
       // (One wavelength: the PSFs serve every channel; the sum runs per channel.)
       const double wave_matched =
           per_source * matched_sources + imaging_per_px * double(size) * size * channels;
+      const double fftw_matched =
+          per_source_fftw * matched_sources + imaging_per_px_fftw * double(size) * size * channels;
       const std::string tag = std::to_string(size) + "² " + (channels == 1 ? "grey" : "colour");
-      bench::Result r{"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
-                      "wave ref., matched grid (extrap.)", 1 / wave_matched};
-      rows.push_back(r);
+      rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
+                      "wave ref., matched grid (extrap.)", 1 / wave_matched});
+      rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
+                      "wave ref. FFTW, matched (extrap.)", 1 / fftw_matched});
       nlohmann::json j = {{"size", size},
                           {"channels", channels},
                           {"fps", 1 / sec},
@@ -96,15 +111,20 @@ void run_bench_sim(const BenchSimArgs& a) {
                           {"field_grid", {s.field().grid_h(), s.field().grid_w()}},
                           {"field_step_px", s.field().step_x_px()},
                           {"wave_seconds_matched_grid", wave_matched},
+                          {"wave_fftw_seconds_matched_grid", fftw_matched},
                           {"wave_matched_is_extrapolated", true},
                           {"speedup_vs_wave_same_device", wave_matched / sec},
-                          {"speedup_vs_wave_fftw", nullptr}};
+                          {"speedup_vs_wave_fftw", fftw_matched / sec}};
       if (size == 256 && channels == 1) {
         j["wave_seconds_measured"] = wave_seconds;
         j["speedup_vs_wave_measured_grid"] = wave_seconds / sec;
-        rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
-                        "wave ref., " + std::to_string(wr.sources_x) + "² sources (meas.)",
+        j["wave_fftw_seconds_measured"] = fftw_seconds;
+        j["speedup_vs_wave_fftw_measured_grid"] = fftw_seconds / sec;
+        const std::string sources = std::to_string(wr.sources_x) + "² sources (meas.)";
+        rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s", "wave ref., " + sources,
                         1 / wave_seconds});
+        rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
+                        "wave ref. FFTW, " + sources, 1 / fftw_seconds});
       }
       per_size.push_back(j);
       std::fprintf(stderr, "bench sim: %s %.3f s/frame\n", tag.c_str(), sec);
@@ -118,18 +138,29 @@ void run_bench_sim(const BenchSimArgs& a) {
       "%dx%d;\n"
       "measured on 256² grey with %dx%d sources every %.0f px: %.1f s (%.3f s per source, %.2f s "
       "imaging).\n"
+      "the same with its FFTs on FFTW on the CPU (1 thread, FFTW_MEASURE plans; screens, "
+      "propagation and\n"
+      "PSFs all on the host, nothing on the device): %.1f s (%.3f s per source, %.2f s imaging).\n"
       "Matched grid: one source per fast-simulator field point (the same PSF-field resolution), "
       "extrapolated\n"
-      "from the measured per-source cost. speedup_vs_wave_fftw: not measured (the reference has no "
-      "FFTW path).\n",
+      "from the measured per-source cost of each (speedup_vs_wave_same_device, "
+      "speedup_vs_wave_fftw).\n",
       plan.grid, plan.z_m.size(), plan.spacing_m * 1e3, plan.pupil_fft, wr.psf_size, wr.psf_size,
-      wr.sources_x, wr.sources_y, a.wave_step_px, wave_seconds, per_source, wr.image_seconds);
+      wr.sources_x, wr.sources_y, a.wave_step_px, wave_seconds, per_source, wr.image_seconds,
+      fftw_seconds, per_source_fftw, wr_fftw.image_seconds);
   nlohmann::json out = bench::to_json(device, rows);
   out["sizes"] = per_size;
-  out["wave_reference"] = {{"grid", plan.grid},           {"screens", plan.z_m.size()},
-                           {"spacing_m", plan.spacing_m}, {"pupil_fft", plan.pupil_fft},
-                           {"psf_size", wr.psf_size},     {"sources", {wr.sources_y, wr.sources_x}},
-                           {"seconds", wave_seconds},     {"seconds_per_source", per_source}};
+  out["wave_reference"] = {{"grid", plan.grid},
+                           {"screens", plan.z_m.size()},
+                           {"spacing_m", plan.spacing_m},
+                           {"pupil_fft", plan.pupil_fft},
+                           {"psf_size", wr.psf_size},
+                           {"sources", {wr.sources_y, wr.sources_x}},
+                           {"seconds", wave_seconds},
+                           {"seconds_per_source", per_source},
+                           {"fftw_seconds", fftw_seconds},
+                           {"fftw_seconds_per_source", per_source_fftw},
+                           {"fftw_threads", 1}};
   if (!a.json_path.empty()) bench::write_json(a.json_path, out);
   if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
 }
@@ -141,7 +172,8 @@ void add_bench(CLI::App& app) {
   cmd->require_subcommand(1);
   auto a = std::make_shared<BenchSimArgs>();
   CLI::App* sim_cmd = cmd->add_subcommand(
-      "sim", "Fast simulator frames/s and speedup over the wave-optics reference");
+      "sim",
+      "Fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)");
   sim_cmd->footer(
       "Example:\n  vkjr2 bench sim --json-file bench_sim.json\n"
       "Kernels, runtime and face networks: build/release/bench/{kernels,runtime,nets}_bench "

@@ -10,7 +10,8 @@ void add_path_options(CLI::App* cmd, PathArgs& a) {
   cmd->add_option("--preset", a.preset, "Turbulence preset")
       ->default_val("moderate")
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
-  cmd->add_option("--config", a.config, "JSON parameter file (docs/sim.md §1); overrides --preset");
+  cmd->add_option("--config", a.config,
+                  "JSON or YAML (.yaml/.yml) parameter file (docs/sim.md §1); overrides --preset");
   cmd->add_option("--cn2", a.cn2, "Uniform Cn² along the path, m^(-2/3)");
   cmd->add_option("--r0", a.r0, "Fried parameter r0 in metres (instead of --cn2)");
   cmd->add_option("--range", a.range, "Path length L in metres");

@@ -105,7 +105,7 @@ void add_sim_train(CLI::App& app) {
       ->default_val("moderate")
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
   cmd->add_option("--config", a->config,
-                  "JSON parameter file (its optics set the sampling); overrides --preset");
+                  "JSON or YAML parameter file (its optics set the sampling); overrides --preset");
   auto& b = a->artifact.basis;
   auto& t = a->artifact.train;
   cmd->add_option("--size", b.size, "PSF kernel size S (odd)")

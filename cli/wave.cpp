@@ -21,7 +21,7 @@ namespace {
 
 struct WaveArgs {
   PathArgs path;
-  std::string input, output, device;
+  std::string input, output, device, fft = "device";
   sim::WaveImageConfig config;
   bool json_out = false, quiet = false, force = false;
 };
@@ -37,6 +37,7 @@ void run_wave(WaveArgs& a) {
   check_writable(out, a.force);
   const Image img = read_image(in);
   const sim::Params p = params_for_image(a.path, int(img.shape[0]), int(img.shape[1]));
+  a.config.wave.fft = a.fft == "fftw" ? sim::FftBackend::fftw : sim::FftBackend::device;
   DeviceOptions dopt;
   dopt.selector = a.device;
   const Device device(dopt);
@@ -59,6 +60,7 @@ void run_wave(WaveArgs& a) {
                               {"image_seconds", rep.image_seconds},
                               {"sources", {rep.sources_y, rep.sources_x}},
                               {"psf_size", rep.psf_size},
+                              {"fft", sim::fft_backend_name(a.config.wave.fft)},
                               {"grid", plan.grid},
                               {"screens", plan.z_m.size()},
                               {"spacing_m", plan.spacing_m},
@@ -90,7 +92,8 @@ void add_wave(CLI::App& app) {
       "Slow by design: it is the ground truth the fast simulator is checked and timed against.\n"
       "Examples:\n"
       "  vkjr2 wave face.png face_wave.png --preset strong --source-step 8\n"
-      "  vkjr2 wave face.png out.png --grid 128 --screens 5 --json");
+      "  vkjr2 wave face.png out.png --grid 128 --screens 5 --json\n"
+      "  vkjr2 wave face.png out.png --fft fftw");
   cmd->add_option("IN", a->input, "Input image (.png, .jpg, .tif, .npy)")->required();
   cmd->add_option("OUT", a->output, "Output .png image")->required();
   add_path_options(cmd, a->path);
@@ -109,6 +112,11 @@ void add_wave(CLI::App& app) {
   cmd->add_option("--psf-size", a->config.psf_size, "PSF size in pixels (odd; 0 = from the seeing)")
       ->default_val(0)
       ->check(CLI::Range(0, 65));
+  cmd->add_option("--fft", a->fft,
+                  "Where the FFTs run: device (with the rest of the reference) or fftw (all on "
+                  "the CPU)")
+      ->default_val("device")
+      ->check(CLI::IsMember({"device", "fftw"}));
   cmd->add_option("--device", a->device,
                   "Vulkan device index or name substring (else VKJR2_DEVICE)");
   cmd->add_flag("--json", a->json_out, "Print JSON instead of text");

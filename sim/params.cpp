@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <cstdio>
 #include <limits>
@@ -365,7 +366,8 @@ struct Reader {
     if (!parent.contains(key)) return nullptr;
     const json& v = parent.at(key);
     if (!v.is_object())
-      fail(where, "must be a JSON object {...}", "see docs/sim.md for the layout");
+      fail(where, "must be an object ({...} in JSON, a mapping in YAML)",
+           "see docs/sim.md for the layout");
     return &v;
   }
 
@@ -407,7 +409,8 @@ Params params_from_json(std::string_view text, std::string_view source) {
                           "fix the syntax (a trailing comma, a missing quote, …)");
   }
   if (!doc.is_object())
-    r.fail("the top level", "must be a JSON object {...}", "see docs/sim.md for the layout");
+    r.fail("the top level", "must be an object ({...} in JSON, a mapping in YAML)",
+           "see docs/sim.md for the layout");
   r.only_keys(doc, "", {"preset", "optics", "path", "image", "zernike_modes"});
 
   Params p;
@@ -541,15 +544,26 @@ std::string params_to_json(const Params& p) {
   return doc.dump(2) + "\n";
 }
 
+namespace {
+
+bool is_yaml(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  for (char& c : ext) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return ext == ".yaml" || ext == ".yml";
+}
+
+}  // namespace
+
 Params load_params(const std::filesystem::path& path) {
   const auto bytes = nets::read_file_bytes(path, "sim::load_params");
   const std::string text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
-  return params_from_json(text, path.string());
+  return is_yaml(path) ? params_from_yaml(text, path.string())
+                       : params_from_json(text, path.string());
 }
 
 void save_params(const Params& params, const std::filesystem::path& path) {
   validate(params);
-  const std::string text = params_to_json(params);
+  const std::string text = is_yaml(path) ? params_to_yaml(params) : params_to_json(params);
   nets::write_file_atomic(path, std::as_bytes(std::span(text.data(), text.size())),
                           "sim::save_params");
 }

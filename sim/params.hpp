@@ -145,7 +145,8 @@ std::vector<std::string> preset_names();
 // "L=1000 m D=0.2 m f=1.6 m λ=525 nm r0=6.7 cm D/r0=3.0 θ0=… Rytov=… Nyquist=0.61 256×256×1 ×1".
 std::string summary(const Params& params, const Derived& derived);
 
-// JSON config. Keys (all optional; absent keys keep the preset's value):
+// JSON config (YAML below: the same keys). Keys (all optional; absent keys keep the preset's
+// value):
 // {"preset": "moderate",
 //  "optics": {"aperture_m", "focal_length_m", "wavelengths_m": [..] or number,
 //             "pixel_pitch_m" | "field_width_m"},
@@ -157,8 +158,16 @@ std::string summary(const Params& params, const Derived& derived);
 // source names the text in messages (a file name).
 Params params_from_json(std::string_view text, std::string_view source = "config");
 std::string params_to_json(const Params& params);
+// YAML config: the same keys, semantics and errors (the document is read as
+// the JSON value it denotes, YAML 1.2 core schema: quoted scalars are
+// strings, plain ones null/bool/int/float by their spelling), plus a
+// duplicated key is an error. Throws InvalidArgument naming source for
+// malformed YAML (with line and column).
+Params params_from_yaml(std::string_view text, std::string_view source = "config");
+std::string params_to_yaml(const Params& params);
+// By extension (case-insensitive): .yaml or .yml is YAML, anything else JSON.
 Params load_params(const std::filesystem::path& path);
-// Written to a temporary name, then renamed.
+// YAML for .yaml/.yml, else JSON; written to a temporary name, then renamed.
 void save_params(const Params& params, const std::filesystem::path& path);
 
 }  // namespace vkjr2::sim

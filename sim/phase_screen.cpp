@@ -173,7 +173,8 @@ double screen_structure_function(const ScreenGrid& grid, const ScreenLayer& laye
 }
 
 ScreenParts phase_screen_parts(const Device& device, const ScreenGrid& grid,
-                               std::span<const ScreenLayer> layers, std::uint64_t seed) {
+                               std::span<const ScreenLayer> layers, std::uint64_t seed,
+                               FftBackend fft) {
   validate(grid, layers);
   ScreenParts parts;
   if (layers.empty()) return parts;
@@ -196,7 +197,7 @@ ScreenParts phase_screen_parts(const Device& device, const ScreenGrid& grid,
       dst[2 * i + 1] = static_cast<float>(s.imag());
     }
   }
-  kernels::fft2_host(device, Shape{pairs, m, m}, spectra, /*inverse=*/true, kernels::FftNorm::none);
+  fft2_host(fft, device, Shape{pairs, m, m}, spectra, /*inverse=*/true, kernels::FftNorm::none);
 
   parts.periodic.resize(layers.size() * plane);
   for (std::size_t s = 0; s < layers.size(); ++s) {
@@ -211,8 +212,9 @@ ScreenParts phase_screen_parts(const Device& device, const ScreenGrid& grid,
 }
 
 std::vector<float> phase_screens(const Device& device, const ScreenGrid& grid,
-                                 std::span<const ScreenLayer> layers, std::uint64_t seed) {
-  ScreenParts parts = phase_screen_parts(device, grid, layers, seed);
+                                 std::span<const ScreenLayer> layers, std::uint64_t seed,
+                                 FftBackend fft) {
+  ScreenParts parts = phase_screen_parts(device, grid, layers, seed, fft);
   const std::size_t plane = std::size_t(grid.size) * grid.size;
   for (std::size_t s = 0; s < parts.subharmonics.size(); ++s) {
     add_subharmonics(grid, parts.subharmonics[s],

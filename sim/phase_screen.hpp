@@ -8,6 +8,7 @@
 #pragma once
 
 #include <vkjr2/runtime/device.hpp>
+#include <vkjr2/sim/host_fft.hpp>
 
 #include <complex>
 #include <cstdint>
@@ -50,9 +51,12 @@ double von_karman_psd(double f_per_m, const ScreenLayer& layer);
 // may have different PSDs); the subharmonics are added on the host.
 // Deterministic: the same seed, grid and layers give the same screens
 // (one sim::Rng(seed) draws every Gaussian, in a fixed order).
-// Throws InvalidArgument for a bad size, spacing, r0 or scale.
+// Throws InvalidArgument for a bad size, spacing, r0 or scale. fft picks
+// where the inverse FFT runs (FftBackend::fftw: on the CPU, device unused);
+// the backends agree to float rounding.
 std::vector<float> phase_screens(const Device& device, const ScreenGrid& grid,
-                                 std::span<const ScreenLayer> layers, std::uint64_t seed);
+                                 std::span<const ScreenLayer> layers, std::uint64_t seed,
+                                 FftBackend fft = FftBackend::device);
 
 // The expected structure function ⟨(φ(x + r e_x) − φ(x))²⟩ of the screens
 // phase_screens() makes (along a grid axis, r in metres): the discrete model
@@ -78,7 +82,8 @@ struct ScreenParts {
   std::vector<std::vector<Subharmonic>> subharmonics;
 };
 ScreenParts phase_screen_parts(const Device& device, const ScreenGrid& grid,
-                               std::span<const ScreenLayer> layers, std::uint64_t seed);
+                               std::span<const ScreenLayer> layers, std::uint64_t seed,
+                               FftBackend fft = FftBackend::device);
 
 // Convenience: `count` screens of one layer.
 std::vector<float> phase_screens(const Device& device, const ScreenGrid& grid,

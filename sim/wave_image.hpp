@@ -7,7 +7,8 @@
 // (the scattering form with the same border normalization as the fast
 // simulator). The PSFs keep their tilt (their displacement from the
 // geometric image point), so this is tilt and blur at once. Propagation and
-// PSFs run on the device; the sum over pixels on the host.
+// PSFs run on the device (or, with WaveConfig::fft = FftBackend::fftw, on
+// the CPU with FFTW); the sum over pixels on the host.
 #pragma once
 
 #include <vkjr2/runtime/device.hpp>

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <complex>
 #include <cstdint>
 #include <cstdio>
 #include <numbers>
@@ -94,6 +95,112 @@ Slabs slabs(const Params& params, double k, int n) {
 
 int signed_bin(int u, int n) { return u <= n / 2 ? u : u - n; }
 
+// The inputs of the split steps, laid out as shaders/wave_modulate.comp reads them.
+struct HostModulation {
+  int n, m;
+  std::size_t batch, terms_per_screen;
+  std::span<const float> screens, masks, shifts, terms;
+};
+
+// wave_modulate on the host, for one screen and every source: field *=
+// mask 0 · exp(i φ(x + shift)), φ bilinear in the periodic screen (wrapped)
+// plus the subharmonic terms at the shifted position. Within a source the
+// shift is one vector, so the bilinear weights are constant and the terms
+// separable: Re(c e^{2πi(fx x + fy y)}) = Re(c ex[col] ey[row]).
+void modulate_on_host(const HostModulation& mod, std::size_t screen, std::span<float> field) {
+  const int n = mod.n;
+  const int m = mod.m;
+  const std::size_t plane = std::size_t(n) * n;
+  const std::size_t terms = mod.terms_per_screen;
+  const float* phase = &mod.screens[screen * std::size_t(m) * m];
+  const float* absorber = mod.masks.data();  // mask 0
+  std::vector<std::complex<double>> ex(terms * n), ey(terms * n);
+  std::vector<int> col0(n), col1(n), row0(n), row1(n);
+  std::vector<double> phi(n);
+  const auto wrap = [m](int v) { return ((v % m) + m) % m; };
+  const int centre = n / 2;          // x = 0 at grid sample N/2 ...
+  const int origin = m / 2 - n / 2;  // ... and screen sample M/2
+  for (std::size_t b = 0; b < mod.batch; ++b) {
+    const float* shift = &mod.shifts[(screen * mod.batch + b) * 2];
+    const double xs0 = double(shift[0]) + origin;  // screen column of grid column 0
+    const double ys0 = double(shift[1]) + origin;
+    const double x_floor = std::floor(xs0);
+    const double y_floor = std::floor(ys0);
+    const double tx = xs0 - x_floor;
+    const double ty = ys0 - y_floor;
+    for (int i = 0; i < n; ++i) {
+      col0[i] = wrap(int(x_floor) + i);
+      col1[i] = wrap(int(x_floor) + i + 1);
+      row0[i] = wrap(int(y_floor) + i);
+      row1[i] = wrap(int(y_floor) + i + 1);
+    }
+    for (std::size_t t = 0; t < terms; ++t) {
+      const float* term = &mod.terms[(screen * terms + t) * 4];
+      const std::complex<double> coefficient(term[2], term[3]);
+      for (int i = 0; i < n; ++i) {
+        const double x = double(i - centre) + shift[0];
+        const double y = double(i - centre) + shift[1];
+        ex[t * n + i] = std::polar(1.0, 2 * kPi * term[0] * x);
+        ey[t * n + i] = coefficient * std::polar(1.0, 2 * kPi * term[1] * y);
+      }
+    }
+    float* f = &field[b * plane * 2];
+    for (int r = 0; r < n; ++r) {
+      const float* s0 = phase + std::size_t(row0[r]) * m;
+      const float* s1 = phase + std::size_t(row1[r]) * m;
+      for (int c = 0; c < n; ++c) {
+        const double top = s0[col0[c]] + tx * (s0[col1[c]] - s0[col0[c]]);
+        const double bottom = s1[col0[c]] + tx * (s1[col1[c]] - s1[col0[c]]);
+        phi[c] = top + ty * (bottom - top);
+      }
+      for (std::size_t t = 0; t < terms; ++t) {
+        const std::complex<double> h = ey[t * n + r];
+        const std::complex<double>* e = &ex[t * n];
+        for (int c = 0; c < n; ++c) phi[c] += h.real() * e[c].real() - h.imag() * e[c].imag();
+      }
+      for (int c = 0; c < n; ++c) {
+        const std::size_t p = std::size_t(r) * n + c;
+        const std::complex<double> k =
+            std::complex<double>(absorber[2 * p], absorber[2 * p + 1]) * std::polar(1.0, phi[c]);
+        const std::complex<double> u(f[2 * p], f[2 * p + 1]);
+        const std::complex<double> v = u * k;
+        f[2 * p] = static_cast<float>(v.real());
+        f[2 * p + 1] = static_cast<float>(v.imag());
+      }
+    }
+  }
+}
+
+// field *= mask `mask` (a Fresnel transfer function), every source.
+void multiply_on_host(const HostModulation& mod, std::size_t mask, std::span<float> field) {
+  const std::size_t plane = std::size_t(mod.n) * mod.n;
+  const float* h = &mod.masks[mask * plane * 2];
+  for (std::size_t b = 0; b < mod.batch; ++b) {
+    float* f = &field[b * plane * 2];
+    for (std::size_t p = 0; p < plane; ++p) {
+      const float re = f[2 * p] * h[2 * p] - f[2 * p + 1] * h[2 * p + 1];
+      const float im = f[2 * p] * h[2 * p + 1] + f[2 * p + 1] * h[2 * p];
+      f[2 * p] = re;
+      f[2 * p + 1] = im;
+    }
+  }
+}
+
+// The split steps of propagate() on the CPU (FftBackend::fftw).
+std::vector<float> propagate_on_host(const HostModulation& mod, std::size_t screens) {
+  const std::size_t plane = std::size_t(mod.n) * mod.n;
+  FftwFloats field(mod.batch * plane * 2, 0.0f);
+  for (std::size_t i = 0; i < mod.batch * plane; ++i) field[2 * i] = 1.0f;  // plane wave
+  const Shape shape{std::int64_t(mod.batch), mod.n, mod.n};
+  for (std::size_t i = 0; i < screens; ++i) {
+    modulate_on_host(mod, i, field);  // screen i and the absorber
+    fft2_fftw(shape, field, /*inverse=*/false);
+    multiply_on_host(mod, i + 1, field);  // propagate to the next plane
+    fft2_fftw(shape, field, /*inverse=*/true);
+  }
+  return {field.begin(), field.end()};
+}
+
 std::vector<float> propagate(const Device& device, const Params& params, const WavePlan& plan,
                              const WaveConfig& config,
                              std::span<const std::array<double, 2>> angles_rad) {
@@ -124,8 +231,8 @@ std::vector<float> propagate(const Device& device, const Params& params, const W
     layers.push_back(
         {plan.r0_scaled_m[i], config.inner_scale_m * scale, config.outer_scale_m * scale});
   }
-  const ScreenParts parts =
-      phase_screen_parts(device, ScreenGrid{m, dx, config.subharmonic_levels}, layers, config.seed);
+  const ScreenParts parts = phase_screen_parts(device, ScreenGrid{m, dx, config.subharmonic_levels},
+                                               layers, config.seed, config.fft);
   const std::size_t terms_per_screen = 4 * std::size_t(config.subharmonic_levels);
   std::vector<float> screen_values(screens * screen_plane, 0.0f);
   // (fx, fy) in cycles per pixel, coefficient (re, im); at least one texel.
@@ -183,6 +290,12 @@ std::vector<float> propagate(const Device& device, const Params& params, const W
         h[2 * p + 1] = static_cast<float>(std::sin(phase));
       }
     }
+  }
+
+  if (config.fft == FftBackend::fftw) {
+    const HostModulation mod{n,     m,      batch,      terms_per_screen, screen_values,
+                             masks, shifts, term_values};
+    return propagate_on_host(mod, screens);
   }
 
   std::vector<float> field_values(batch * plane * 2);
@@ -344,7 +457,8 @@ std::vector<float> wave_psfs(const Device& device, const Params& params, int cha
     }
   }
   const auto b64 = static_cast<std::int64_t>(batch);
-  kernels::fft2_host(device, Shape{b64, nf, nf}, pupil, /*inverse=*/false, kernels::FftNorm::none);
+  fft2_host(config.fft, device, Shape{b64, nf, nf}, pupil, /*inverse=*/false,
+            kernels::FftNorm::none);
 
   const std::size_t out_plane = std::size_t(psf_size) * psf_size;
   std::vector<float> psfs(batch * out_plane);

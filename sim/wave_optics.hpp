@@ -18,6 +18,7 @@
 #pragma once
 
 #include <vkjr2/runtime/device.hpp>
+#include <vkjr2/sim/host_fft.hpp>
 #include <vkjr2/sim/params.hpp>
 
 #include <array>
@@ -50,6 +51,12 @@ struct WaveConfig {
   // biasing the coherence high (docs/sim.md, "Wave optics").
   bool absorber = false;
   std::uint64_t seed = 1;
+  // Where the FFTs (screens, split steps, pupil → PSF) run. FftBackend::fftw
+  // runs the whole reference on the CPU (FFTW, one thread; the screen and
+  // propagator products on the host too) and never touches the Device; the
+  // two agree to float rounding (same seed: fields within 7e-6, PSFs within
+  // 5e-7 of the peak at grid 64, tests/sim/wave_optics_test.cpp).
+  FftBackend fft = FftBackend::device;
 };
 
 // The sampling and screens derive from Params and WaveConfig.

@@ -194,6 +194,18 @@ TEST(CliWave, ImagesASceneThroughTheReference) {
   const cv::Mat a = cv::imread(in.string()), b = cv::imread(out.string());
   ASSERT_FALSE(b.empty());
   EXPECT_GT(mean_abs_diff(a, b), 2.0);
+  // FFTW on the CPU, parameters from a YAML file equal to the default preset:
+  // the same image (the backends agree to float rounding; 8-bit output).
+  std::ofstream(tmp.path / "cfg.yaml") << "preset: moderate\n";
+  const fs::path out_fftw = tmp.path / "wave_fftw.png";
+  r = run_cli("wave " + in.string() + " " + out_fftw.string() + " --config " +
+              (tmp.path / "cfg.yaml").string() +
+              " --grid 64 --screens 3 --source-step 24 --fft fftw --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["fft"], "fftw");
+  const cv::Mat c = cv::imread(out_fftw.string());
+  ASSERT_FALSE(c.empty());
+  EXPECT_LT(mean_abs_diff(b, c), 0.05);
   r = run_cli("wave " + (tmp.path / "clip.avi").string() + " " + out.string() + " --force");
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.output.find("single frames"), std::string::npos) << r.output;
@@ -224,6 +236,7 @@ TEST(CliBenchSim, ReportsFramesPerSecondAndSpeedup) {
   for (const auto& e : j["sizes"]) {
     EXPECT_GT(e["fps"].get<double>(), 0);
     EXPECT_GT(e["speedup_vs_wave_same_device"].get<double>(), 0);
+    EXPECT_GT(e["speedup_vs_wave_fftw"].get<double>(), 0);
   }
   r = run_cli("bench sim --preset hurricane");
   EXPECT_EQ(r.code, 2);

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
+#include <iterator>
 #include <limits>
 #include <numbers>
 #include <string>
@@ -350,6 +351,110 @@ TEST(SimParams, JsonErrorsNameTheKey) {
     EXPECT_NE(msg.find(c.want), std::string::npos) << c.text << " → " << msg;
     EXPECT_NE(msg.find("cfg.json"), std::string::npos) << msg;
   }
+}
+
+// The same configuration as YAML (comments, block and flow style, quoted
+// and plain strings) and as JSON.
+constexpr const char* kTwinYaml = R"(# a 3-channel profile case
+preset: strong
+optics:
+  aperture_m: 0.25
+  focal_length_m: 2.0
+  wavelengths_m: [620e-9, 525e-9, 4.6e-7]
+  field_width_m: 1.5
+path:
+  range_m: 1500
+  wave: "plane"
+  cn2_profile:
+    z_m:
+      - 0
+      - 250.5
+      - 1500
+    cn2: [1e-15, 3.25e-14, 2e-15]
+image: {height: 480, width: 640, channels: 3, batch: 2}
+zernike_modes: 45
+)";
+constexpr const char* kTwinJson = R"({"preset": "strong",
+ "optics": {"aperture_m": 0.25, "focal_length_m": 2.0,
+            "wavelengths_m": [620e-9, 525e-9, 4.6e-7], "field_width_m": 1.5},
+ "path": {"range_m": 1500, "wave": "plane",
+          "cn2_profile": {"z_m": [0, 250.5, 1500], "cn2": [1e-15, 3.25e-14, 2e-15]}},
+ "image": {"height": 480, "width": 640, "channels": 3, "batch": 2},
+ "zernike_modes": 45})";
+
+TEST(SimParams, YamlEqualsItsJsonTwin) {
+  const Params y = params_from_yaml(kTwinYaml, "twin.yaml");
+  const Params j = params_from_json(kTwinJson, "twin.json");
+  EXPECT_EQ(params_to_json(y), params_to_json(j));
+  EXPECT_EQ(y.path.cn2_z_m, (std::vector<double>{0, 250.5, 1500}));
+  EXPECT_EQ(y.optics.wavelengths_m, (std::vector<double>{620e-9, 525e-9, 4.6e-7}));
+  EXPECT_EQ(y.image.batch, 2);
+  // params_to_yaml reads back to the same parameters, bit for bit.
+  EXPECT_EQ(params_to_json(params_from_yaml(params_to_yaml(y))), params_to_json(y));
+  // r0 with its wavelength, in flow style.
+  const Params r = params_from_yaml("path: {r0_m: 0.07, r0_wavelength_m: 550e-9}\n");
+  EXPECT_EQ(r.path.strength, Strength::r0);
+  EXPECT_EQ(r.path.r0_m, 0.07);
+  EXPECT_EQ(r.path.r0_wavelength_m, 550e-9);
+}
+
+TEST(SimParams, YamlErrorsNameTheKey) {
+  struct Case {
+    const char* text;
+    const char* want;
+  };
+  for (const Case& c : std::vector<Case>{
+           {"optics:\n  aperture: 0.2\n", "optics.aperture"},
+           {"optic: {}\n", "optic"},
+           {"path:\n  range_m: far\n", "path.range_m must be a number"},
+           {"path:\n  range_m: \"1000\"\n", "path.range_m must be a number"},
+           {"path: {r0_m: 0.05, cn2: 1e-15}\n", "twice"},
+           {"optics: {pixel_pitch_m: 3e-6, field_width_m: 1}\n", "both"},
+           {"image:\n  height: 2.5\n", "image.height must be an integer"},
+           {"path:\n  cn2_profile: {z_m: [0, 1], cn2: [1e-15, x]}\n", "path.cn2_profile.cn2[1]"},
+           {"path:\n  range_m: -4\n", "path.range_m"},
+           {"preset: medium\n", "preset"},
+           {"path:\n  range_m: 1000\n  range_m: 900\n", "path.range_m is given twice"},
+           {"- 1\n- 2\n", "top level"},
+           {"optics: 0.2\n", "optics must be an object"},
+           {"path:\n  range_m: [1000\n", "not valid YAML: line"},
+           {"optics:\n  aperture_m: 0.2\n   focal_length_m: 1\n", "not valid YAML"},
+       }) {
+    const std::string msg = error_of([&] { params_from_yaml(c.text, "cfg.yaml"); });
+    EXPECT_NE(msg.find(c.want), std::string::npos) << c.text << " → " << msg;
+    EXPECT_NE(msg.find("cfg.yaml"), std::string::npos) << msg;
+  }
+}
+
+TEST(SimParams, LoadAndSavePickTheFormatByExtension) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("vkjr2_sim_params_yaml_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const char* name : {"twin.yaml", "twin.YML"}) {
+    std::ofstream(dir / name) << kTwinYaml;
+  }
+  std::ofstream(dir / "twin.json") << kTwinJson;
+  const std::string want = params_to_json(load_params(dir / "twin.json"));
+  EXPECT_EQ(params_to_json(load_params(dir / "twin.yaml")), want);
+  EXPECT_EQ(params_to_json(load_params(dir / "twin.YML")), want);
+  // YAML is not read as JSON by a .json name (the JSON error names the file).
+  std::ofstream(dir / "wrong.json") << kTwinYaml;
+  const std::string msg = error_of([&] { load_params(dir / "wrong.json"); });
+  EXPECT_NE(msg.find("not valid JSON"), std::string::npos) << msg;
+  EXPECT_NE(msg.find("wrong.json"), std::string::npos) << msg;
+  // A malformed YAML file: an error naming it and the line.
+  std::ofstream(dir / "bad.yml") << "optics:\n  aperture_m: [0.2\n";
+  const std::string bad = error_of([&] { load_params(dir / "bad.yml"); });
+  EXPECT_NE(bad.find("bad.yml"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("line"), std::string::npos) << bad;
+  // save_params writes YAML for a YAML name, and it loads back.
+  const Params p = load_params(dir / "twin.json");
+  save_params(p, dir / "saved.yaml");
+  std::ifstream in(dir / "saved.yaml");
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_EQ(text.find('{'), std::string::npos) << text;  // block style, not JSON
+  EXPECT_EQ(params_to_json(load_params(dir / "saved.yaml")), want);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(SimParams, SaveAndLoadFiles) {
