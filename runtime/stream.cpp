@@ -66,6 +66,7 @@ struct Stream::Impl {
   VkCommandPool pool = VK_NULL_HANDLE;
   VkCommandBuffer cmd = VK_NULL_HANDLE;
   VkFence fence = VK_NULL_HANDLE;
+  HostCommands* host = nullptr;  // records into the host's command buffers when set
   enum class State { idle, recording, submitted } state = State::idle;
 
   std::vector<Touch> pending;  // accesses not yet separated by a barrier
@@ -92,9 +93,17 @@ struct Stream::Impl {
       throw Error("Stream", "recording while earlier work is still in flight",
                   "call wait() before recording more");
     }
-    VkCommandBufferBeginInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
-    info.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
-    check(vkBeginCommandBuffer(cmd, &info), "begin command buffer");
+    if (host != nullptr) {
+      cmd = host->begin();
+      if (cmd == VK_NULL_HANDLE) {
+        throw InvalidArgument("Stream (HostCommands::begin)", "returned no command buffer",
+                              "return a primary command buffer in the recording state");
+      }
+    } else {
+      VkCommandBufferBeginInfo info{VK_STRUCTURE_TYPE_COMMAND_BUFFER_BEGIN_INFO};
+      info.flags = VK_COMMAND_BUFFER_USAGE_ONE_TIME_SUBMIT_BIT;
+      check(vkBeginCommandBuffer(cmd, &info), "begin command buffer");
+    }
     state = State::recording;
     // Order this submission after earlier ones' compute and transfer work.
     full_barrier();
@@ -174,7 +183,17 @@ struct Stream::Impl {
 
   void finish_wait() {
     if (state != State::submitted) return;
-    const VkResult r = vkWaitForFences(core->device, 1, &fence, VK_TRUE, UINT64_MAX);
+    VkResult r = VK_SUCCESS;
+    if (host != nullptr) {
+      try {
+        host->wait();
+      } catch (...) {
+        reset();
+        throw;
+      }
+    } else {
+      r = vkWaitForFences(core->device, 1, &fence, VK_TRUE, UINT64_MAX);
+    }
     state = State::idle;
     if (r == VK_SUCCESS && core->profile && !timed.empty()) {
       std::vector<std::uint64_t> stamps(timed.size() * 2);
@@ -195,8 +214,12 @@ struct Stream::Impl {
   }
 
   void reset() noexcept {
-    vkResetFences(core->device, 1, &fence);
-    vkResetCommandPool(core->device, pool, 0);
+    if (host != nullptr) {
+      cmd = VK_NULL_HANDLE;  // the host's, reset or freed by the host
+    } else {
+      vkResetFences(core->device, 1, &fence);
+      vkResetCommandPool(core->device, pool, 0);
+    }
     for (std::size_t i = 0; i < pools.size() && i <= pool_index; ++i) {
       vkResetDescriptorPool(core->device, pools[i], 0);
     }
@@ -212,7 +235,14 @@ struct Stream::Impl {
 
   ~Impl() {
     if (state == State::submitted) {
-      vkWaitForFences(core->device, 1, &fence, VK_TRUE, UINT64_MAX);
+      if (host != nullptr) {
+        try {
+          host->wait();
+        } catch (...) {  // NOLINT(bugprone-empty-catch): destructors never throw
+        }
+      } else {
+        vkWaitForFences(core->device, 1, &fence, VK_TRUE, UINT64_MAX);
+      }
     }
     for (VkDescriptorPool p : pools) vkDestroyDescriptorPool(core->device, p, nullptr);
     if (queries != VK_NULL_HANDLE) vkDestroyQueryPool(core->device, queries, nullptr);
@@ -237,12 +267,17 @@ Stream::Stream(const Device& device) : impl_(std::make_unique<Impl>(device)) {
   check(vkCreateFence(impl_->core->device, &fence_info, nullptr, &impl_->fence), "create fence");
 }
 
+Stream::Stream(const Device& device, HostCommands& host) : impl_(std::make_unique<Impl>(device)) {
+  impl_->host = &host;
+}
+
 Stream::~Stream() = default;
 Stream::Stream(Stream&&) noexcept = default;
 Stream& Stream::operator=(Stream&&) noexcept = default;
 
 const Device& Stream::device() const { return impl_->device; }
 bool Stream::recording() const { return impl_->state == Impl::State::recording; }
+bool Stream::host_commands() const { return impl_->host != nullptr; }
 std::size_t Stream::dispatches() const { return impl_->dispatch_count; }
 std::size_t Stream::barriers() const { return impl_->barrier_count; }
 
@@ -420,9 +455,27 @@ void Stream::fill(const Tensor& dst, float value) {
   fill(dst, std::bit_cast<std::uint32_t>(value));
 }
 
-void Stream::submit() {
+void Stream::submit() { submit(SubmitSync{}); }
+
+void Stream::submit(const SubmitSync& sync) {
   Impl& s = *impl_;
-  if (s.state != Impl::State::recording) return;
+  const bool has_sync = !sync.wait_semaphores.empty() || !sync.signal_semaphores.empty() ||
+                        sync.fence != VK_NULL_HANDLE;
+  if (s.host != nullptr && has_sync) {
+    throw InvalidArgument("Stream::submit", "semaphores or a fence for a stream on HostCommands",
+                          "add them to the submission in HostCommands::submit");
+  }
+  if (!sync.wait_stages.empty() && sync.wait_stages.size() != sync.wait_semaphores.size()) {
+    throw InvalidArgument("Stream::submit",
+                          std::to_string(sync.wait_stages.size()) + " wait stage masks for " +
+                              std::to_string(sync.wait_semaphores.size()) + " wait semaphores",
+                          "give one stage mask per semaphore, or none");
+  }
+  if (s.state != Impl::State::recording && !has_sync) return;
+  if (s.state == Impl::State::submitted) {
+    throw Error("Stream::submit", "semaphores for a submission while earlier work is in flight",
+                "call wait() first");
+  }
   // Make results visible to the host (downloads, mapped reads).
   if (s.wrote) {
     VkMemoryBarrier b{VK_STRUCTURE_TYPE_MEMORY_BARRIER};
@@ -431,20 +484,49 @@ void Stream::submit() {
     vkCmdPipelineBarrier(s.cmd, kWorkStages, VK_PIPELINE_STAGE_HOST_BIT, 0, 1, &b, 0, nullptr, 0,
                          nullptr);
   }
-  check(vkEndCommandBuffer(s.cmd), "end command buffer");
+  if (s.host != nullptr) {
+    try {
+      s.host->submit(s.cmd);  // the host ends and submits its buffer
+    } catch (...) {
+      s.reset();
+      throw;
+    }
+    s.state = Impl::State::submitted;
+    return;
+  }
+  const bool work = s.state == Impl::State::recording;
+  if (work) check(vkEndCommandBuffer(s.cmd), "end command buffer");
+  std::vector<VkPipelineStageFlags> stages = sync.wait_stages;
+  stages.resize(sync.wait_semaphores.size(), kWorkStages);
   VkSubmitInfo info{VK_STRUCTURE_TYPE_SUBMIT_INFO};
-  info.commandBufferCount = 1;
+  info.waitSemaphoreCount = static_cast<std::uint32_t>(sync.wait_semaphores.size());
+  info.pWaitSemaphores = sync.wait_semaphores.data();
+  info.pWaitDstStageMask = stages.data();
+  info.commandBufferCount = work ? 1 : 0;
   info.pCommandBuffers = &s.cmd;
-  VkResult r;
+  info.signalSemaphoreCount = static_cast<std::uint32_t>(sync.signal_semaphores.size());
+  info.pSignalSemaphores = sync.signal_semaphores.data();
+  VkResult r = VK_SUCCESS;
+  VkResult r_fence = VK_SUCCESS;
   {
     std::lock_guard lock(s.core->queue_mutex);
-    r = vkQueueSubmit(s.core->queue, 1, &info, s.fence);
+    if (work) {
+      r = vkQueueSubmit(s.core->queue, 1, &info, s.fence);
+      // A fence of a later, empty submission also covers every earlier
+      // submission to the queue: the host's fence signals when ours does.
+      if (r == VK_SUCCESS && sync.fence != VK_NULL_HANDLE) {
+        r_fence = vkQueueSubmit(s.core->queue, 0, nullptr, sync.fence);
+      }
+    } else {
+      r = vkQueueSubmit(s.core->queue, 1, &info, sync.fence);
+    }
   }
   if (r != VK_SUCCESS) {
-    s.reset();
+    if (work) s.reset();
     check(r, "submit stream");
   }
-  s.state = Impl::State::submitted;
+  if (work) s.state = Impl::State::submitted;
+  check(r_fence, "submit the host's fence");
 }
 
 void Stream::wait() { impl_->finish_wait(); }

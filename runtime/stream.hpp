@@ -1,5 +1,7 @@
 // Stream: records many dispatches and copies into one command buffer,
-// inserting the barriers that data hazards need, then submits them.
+// inserting the barriers that data hazards need, then submits them — on
+// vkjr2's own command buffers, or on a host application's (HostCommands),
+// ordered against the host's work by its semaphores and fences (SubmitSync).
 #pragma once
 
 #include <vkjr2/runtime/kernel.hpp>
@@ -8,12 +10,43 @@
 #include <initializer_list>
 #include <memory>
 #include <type_traits>
+#include <vector>
 
 namespace vkjr2 {
+
+// The host's semaphores and fence for one submission of a Stream's own
+// command buffer. vkjr2 neither creates, resets nor destroys any of them.
+struct SubmitSync {
+  std::vector<VkSemaphore> wait_semaphores;  // the stream's work waits for these
+  // One stage mask per wait semaphore; empty: compute + transfer for each.
+  std::vector<VkPipelineStageFlags> wait_stages;
+  std::vector<VkSemaphore> signal_semaphores;  // signalled when the work has finished
+  VkFence fence = VK_NULL_HANDLE;              // unsignalled; signalled when it has finished
+};
+
+// Command buffers owned by the host application that a Stream records into
+// instead of its own: the host allocates, begins, ends, submits (with its
+// own semaphores and fences) and frees them; vkjr2 only records. The
+// stream keeps every tensor its recorded work uses alive until wait()
+// returns, and calls wait() before it is destroyed.
+class HostCommands {
+ public:
+  virtual ~HostCommands() = default;
+  // A primary command buffer of the device's queue family, already begun.
+  virtual VkCommandBuffer begin() = 0;
+  // vkjr2 has finished recording into `cmd` (the buffer begin() returned):
+  // end it and submit it. May return before the work has finished.
+  virtual void submit(VkCommandBuffer cmd) = 0;
+  // Return once the last submitted buffer's work has finished (e.g. wait for
+  // the host's fence). The stream then reuses begin() for what it records next.
+  virtual void wait() = 0;
+};
 
 class Stream {
  public:
   explicit Stream(const Device& device);
+  // Records into `host`'s command buffers; `host` must outlive the stream.
+  Stream(const Device& device, HostCommands& host);
   ~Stream();  // waits for submitted work; never throws
   Stream(const Stream&) = delete;
   Stream& operator=(const Stream&) = delete;
@@ -47,13 +80,19 @@ class Stream {
   void keep_alive(const Tensor& t);
 
   void submit();  // asynchronous; the stream's fence signals completion
-  void wait();    // waits for the submitted work; the stream can record again
+  // submit() that also waits for / signals the host's semaphores and signals
+  // its fence. With nothing recorded it submits just the semaphore and fence
+  // operations (e.g. "signal S once everything before has finished").
+  // Not for streams on HostCommands (the host submits those itself).
+  void submit(const SubmitSync& sync);
+  void wait();  // waits for the submitted work; the stream can record again
   void run() {
     submit();
     wait();
   }
 
   bool recording() const;          // has unsubmitted commands
+  bool host_commands() const;      // records into a HostCommands' buffers
   std::size_t dispatches() const;  // recorded since the last wait
   std::size_t barriers() const;    // inserted since the last wait
   const Device& device() const;

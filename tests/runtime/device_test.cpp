@@ -8,6 +8,7 @@
 #include <cstring>
 #include <string>
 
+#include "support/host_vulkan.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -157,79 +158,9 @@ TEST(Device, ProfilingReportsKernelTimes) {
 
 // --- adoption of a host application's Vulkan objects ----------------------
 
-struct HostVulkan {
-  VkInstance instance = VK_NULL_HANDLE;
-  VkDebugUtilsMessengerEXT messenger = VK_NULL_HANDLE;
-  VkPhysicalDevice physical = VK_NULL_HANDLE;
-  VkDevice device = VK_NULL_HANDLE;
-  std::uint32_t family = 0;
-  VkQueue queue = VK_NULL_HANDLE;
-  int messages = 0;
-
-  static VKAPI_ATTR VkBool32 VKAPI_CALL callback(VkDebugUtilsMessageSeverityFlagBitsEXT,
-                                                 VkDebugUtilsMessageTypeFlagsEXT types,
-                                                 const VkDebugUtilsMessengerCallbackDataEXT* data,
-                                                 void* user) {
-    if (types & VK_DEBUG_UTILS_MESSAGE_TYPE_GENERAL_BIT_EXT) return VK_FALSE;
-    ++static_cast<HostVulkan*>(user)->messages;
-    ADD_FAILURE() << "Vulkan validation (host objects): " << data->pMessage;
-    return VK_FALSE;
-  }
-
-  HostVulkan() {
-    VkApplicationInfo app{VK_STRUCTURE_TYPE_APPLICATION_INFO};
-    app.apiVersion = VK_API_VERSION_1_1;
-    const char* layer = "VK_LAYER_KHRONOS_validation";
-    const char* ext = VK_EXT_DEBUG_UTILS_EXTENSION_NAME;
-    VkDebugUtilsMessengerCreateInfoEXT mi{VK_STRUCTURE_TYPE_DEBUG_UTILS_MESSENGER_CREATE_INFO_EXT};
-    mi.messageSeverity = VK_DEBUG_UTILS_MESSAGE_SEVERITY_WARNING_BIT_EXT |
-                         VK_DEBUG_UTILS_MESSAGE_SEVERITY_ERROR_BIT_EXT;
-    mi.messageType = VK_DEBUG_UTILS_MESSAGE_TYPE_VALIDATION_BIT_EXT |
-                     VK_DEBUG_UTILS_MESSAGE_TYPE_PERFORMANCE_BIT_EXT;
-    mi.pfnUserCallback = callback;
-    mi.pUserData = this;
-    VkInstanceCreateInfo ii{VK_STRUCTURE_TYPE_INSTANCE_CREATE_INFO};
-    ii.pNext = &mi;
-    ii.pApplicationInfo = &app;
-    ii.enabledLayerCount = 1;
-    ii.ppEnabledLayerNames = &layer;
-    ii.enabledExtensionCount = 1;
-    ii.ppEnabledExtensionNames = &ext;
-    EXPECT_EQ(vkCreateInstance(&ii, nullptr, &instance), VK_SUCCESS);
-    auto create = reinterpret_cast<PFN_vkCreateDebugUtilsMessengerEXT>(
-        vkGetInstanceProcAddr(instance, "vkCreateDebugUtilsMessengerEXT"));
-    create(instance, &mi, nullptr, &messenger);
-    std::uint32_t count = 1;
-    vkEnumeratePhysicalDevices(instance, &count, &physical);
-    std::uint32_t nf = 0;
-    vkGetPhysicalDeviceQueueFamilyProperties(physical, &nf, nullptr);
-    std::vector<VkQueueFamilyProperties> fams(nf);
-    vkGetPhysicalDeviceQueueFamilyProperties(physical, &nf, fams.data());
-    for (std::uint32_t i = 0; i < nf; ++i) {
-      if (fams[i].queueFlags & VK_QUEUE_COMPUTE_BIT) {
-        family = i;
-        break;
-      }
-    }
-    const float prio = 1.f;
-    VkDeviceQueueCreateInfo qi{VK_STRUCTURE_TYPE_DEVICE_QUEUE_CREATE_INFO};
-    qi.queueFamilyIndex = family;
-    qi.queueCount = 1;
-    qi.pQueuePriorities = &prio;
-    VkDeviceCreateInfo di{VK_STRUCTURE_TYPE_DEVICE_CREATE_INFO};
-    di.queueCreateInfoCount = 1;
-    di.pQueueCreateInfos = &qi;
-    EXPECT_EQ(vkCreateDevice(physical, &di, nullptr, &device), VK_SUCCESS);
-    vkGetDeviceQueue(device, family, 0, &queue);
-  }
-  ~HostVulkan() {
-    vkDestroyDevice(device, nullptr);
-    auto destroy = reinterpret_cast<PFN_vkDestroyDebugUtilsMessengerEXT>(
-        vkGetInstanceProcAddr(instance, "vkDestroyDebugUtilsMessengerEXT"));
-    destroy(instance, messenger, nullptr);
-    vkDestroyInstance(instance, nullptr);
-  }
-};
+// The host application's own instance (validation + synchronization
+// validation), device and queue: tests/support/host_vulkan.hpp.
+using test::HostVulkan;
 
 TEST(Device, AdoptsHostDeviceAndBuffersWithoutOwningThem) {
   HostVulkan host;

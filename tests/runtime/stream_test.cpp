@@ -5,7 +5,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 
+#include "support/host_vulkan.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -154,6 +156,147 @@ TEST(Stream, TensorsFromAnotherDeviceAreRejected) {
   Tensor foreign = Tensor::empty(other, {16});
   Stream s(test::device());
   EXPECT_THROW(kernels::fill(s, foreign, 1.f), InvalidArgument);
+}
+
+// --- a host application's command buffers, semaphores and fences ---------
+
+// Records `src` → `dst` (the host's own transfer) into the host's buffer.
+void record_host_copy(const test::HostCommandBuffer& cb, VkBuffer src, VkBuffer dst,
+                      VkDeviceSize bytes) {
+  cb.begin();
+  const VkBufferCopy region{0, 0, bytes};
+  vkCmdCopyBuffer(cb.cmd, src, dst, 1, &region);
+  EXPECT_EQ(vkEndCommandBuffer(cb.cmd), VK_SUCCESS);
+}
+
+// Host copy → vkjr2 dispatch → host copy back, ordered only by the host's
+// semaphores (no waits in between), then the host's fence.
+TEST(Stream, SubmitWaitsForAndSignalsHostSemaphores) {
+  test::HostVulkan host;
+  ASSERT_NE(host.device, VK_NULL_HANDLE);
+  constexpr std::size_t n = 50'001;
+  constexpr VkDeviceSize bytes = n * sizeof(float);
+  const auto xs = test::random_floats(n, 31);
+  const auto ys = test::random_floats(n, 32);
+  {
+    test::HostBuffer staging(host, bytes), xb(host, bytes), yb(host, bytes), readback(host, bytes);
+    std::memcpy(staging.mapped, xs.data(), bytes);
+    std::memcpy(yb.mapped, ys.data(), bytes);
+    test::HostCommandBuffer upload(host), download(host);
+    const VkSemaphore uploaded = host.semaphore(), computed = host.semaphore();
+    const VkFence done = host.fence(), done2 = host.fence();
+    {
+      Device dev(test::adopt(host), test::options());
+      const Tensor x = Tensor::wrap(dev, xb.buffer, 0, {std::int64_t(n)});
+      const Tensor y = Tensor::wrap(dev, yb.buffer, 0, {std::int64_t(n)});
+
+      record_host_copy(upload, staging.buffer, xb.buffer, bytes);
+      ASSERT_EQ(
+          test::host_submit(host.queue, upload.cmd, VK_NULL_HANDLE, 0, uploaded, VK_NULL_HANDLE),
+          VK_SUCCESS);
+      Stream s(dev);
+      kernels::axpy(s, 2.f, x, y);  // y += 2 x, x from the host's copy
+      SubmitSync sync;
+      sync.wait_semaphores = {uploaded};
+      sync.wait_stages = {VK_PIPELINE_STAGE_COMPUTE_SHADER_BIT};
+      sync.signal_semaphores = {computed};
+      s.submit(sync);
+      record_host_copy(download, yb.buffer, readback.buffer, bytes);
+      ASSERT_EQ(test::host_submit(host.queue, download.cmd, computed,
+                                  VK_PIPELINE_STAGE_TRANSFER_BIT, VK_NULL_HANDLE, done),
+                VK_SUCCESS);
+      ASSERT_EQ(vkWaitForFences(host.device, 1, &done, VK_TRUE, UINT64_MAX), VK_SUCCESS);
+      const auto got = readback.floats();
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_FLOAT_EQ(got[i], std::fma(2.f, xs[i], ys[i])) << "i=" << i;
+      }
+      s.wait();
+
+      // The host's fence alone: signalled once the stream's work has finished.
+      kernels::axpy(s, -1.f, x, y);  // y = ys + x
+      SubmitSync fenced;
+      fenced.fence = done2;
+      s.submit(fenced);
+      ASSERT_EQ(vkWaitForFences(host.device, 1, &done2, VK_TRUE, UINT64_MAX), VK_SUCCESS);
+      const auto y_now = yb.floats();
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_FLOAT_EQ(y_now[i], std::fma(-1.f, xs[i], std::fma(2.f, xs[i], ys[i]))) << i;
+      }
+      s.wait();
+      EXPECT_THROW(s.submit(SubmitSync{{uploaded}, {0, 0}, {}, VK_NULL_HANDLE}), InvalidArgument);
+    }
+    // vkjr2 destroyed none of the host's objects: they are still usable.
+    EXPECT_EQ(vkResetFences(host.device, 1, &done), VK_SUCCESS);
+    vkDestroyFence(host.device, done, nullptr);
+    vkDestroyFence(host.device, done2, nullptr);
+    vkDestroySemaphore(host.device, uploaded, nullptr);
+    vkDestroySemaphore(host.device, computed, nullptr);
+  }
+  EXPECT_EQ(host.messages, 0);
+}
+
+TEST(Stream, RecordsIntoHostCommandBuffers) {
+  test::HostVulkan host;
+  ASSERT_NE(host.device, VK_NULL_HANDLE);
+  constexpr std::size_t n = 40'000;
+  constexpr VkDeviceSize bytes = n * sizeof(float);
+  const auto xs = test::random_floats(n, 41);
+  const auto ys = test::random_floats(n, 42);
+  {
+    test::HostBuffer staging(host, bytes), xb(host, bytes), yb(host, bytes);
+    std::memcpy(staging.mapped, xs.data(), bytes);
+    std::memcpy(yb.mapped, ys.data(), bytes);
+    test::HostCommandBuffer upload(host);
+    const VkSemaphore uploaded = host.semaphore();
+    test::HostQueue commands(host);
+    {
+      Device dev(test::adopt(host), test::options());
+      const Tensor x = Tensor::wrap(dev, xb.buffer, 0, {std::int64_t(n)});
+      const Tensor y = Tensor::wrap(dev, yb.buffer, 0, {std::int64_t(n)});
+      record_host_copy(upload, staging.buffer, xb.buffer, bytes);
+      ASSERT_EQ(
+          test::host_submit(host.queue, upload.cmd, VK_NULL_HANDLE, 0, uploaded, VK_NULL_HANDLE),
+          VK_SUCCESS);
+      commands.wait_first = uploaded;
+
+      Stream s(dev, commands);
+      EXPECT_TRUE(s.host_commands());
+      std::vector<float> rx = xs, ry = ys;
+      Tensor temp = Tensor::empty(dev, {std::int64_t(n)});  // vkjr2-owned, in the same buffer
+      for (int step = 0; step < 5; ++step) {
+        kernels::axpy(s, 0.5f, x, y);    // RAW on y after the previous step
+        kernels::axpy(s, -0.25f, y, x);  // RAW on y, WAR on x
+        ref::axpy(0.5f, rx, ry);
+        ref::axpy(-0.25f, ry, rx);
+      }
+      kernels::copy(s, y, temp);
+      kernels::axpy(s, 1.f, temp, x);  // x += y
+      ref::axpy(1.f, ry, rx);
+      const VkFence unused = host.fence();
+      EXPECT_THROW(s.submit(SubmitSync{{}, {}, {}, unused}), InvalidArgument);
+      vkDestroyFence(host.device, unused, nullptr);
+      s.run();
+      EXPECT_EQ(commands.begins, 1);
+      EXPECT_EQ(commands.submits, 1);
+      EXPECT_EQ(commands.waits, 1);
+      const auto gx = xb.floats(), gy = yb.floats();
+      for (std::size_t i = 0; i < n; ++i) {
+        ASSERT_NEAR(gy[i], ry[i], 1e-5f) << "i=" << i;
+        ASSERT_NEAR(gx[i], rx[i], 1e-5f) << "i=" << i;
+      }
+      // The stream records again into the host's (reset) buffer.
+      kernels::fill(s, temp, 3.f);
+      s.run();
+      EXPECT_EQ(commands.begins, 2);
+      EXPECT_EQ(temp.download()[n - 1], 3.f);
+      // Destroying a stream with work in flight waits through the host.
+      kernels::fill(s, temp, 4.f);
+      s.submit();
+    }
+    EXPECT_EQ(commands.waits, 3);
+    vkDestroySemaphore(host.device, uploaded, nullptr);
+  }
+  EXPECT_EQ(host.messages, 0);
 }
 
 }  // namespace

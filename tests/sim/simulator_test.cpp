@@ -1,14 +1,17 @@
 #include <vkjr2/kernels/ref/warp_ref.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/sim/blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <cstring>
 #include <vector>
 
 #include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/host_vulkan.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2::sim {
@@ -89,6 +92,47 @@ TEST(Simulator, SameSeedSameFramesAndVideoEvolves) {
     EXPECT_NE(va, prev) << "frame " << t;
     prev = va;
   }
+}
+
+// Embedding: the simulator on a host application's device, reading and
+// writing the host's buffers and recording into the host's command buffer,
+// makes the frames it makes on vkjr2's own device and stream.
+TEST(Simulator, RecordsIntoAHostCommandBufferOnAnAdoptedDevice) {
+  const Params p = frame_params(1, 3, 64, 80, "moderate");
+  const Shape shape{1, 3, 64, 80};
+  const auto xs = scene(p.image);
+  std::vector<float> want;
+  {
+    Device& dev = test::device();
+    Simulator sim(dev, p, load_default_blur_model(dev));
+    sim.reset(5);
+    const Tensor x = Tensor::from(dev, shape, xs);
+    const Tensor y = Tensor::empty(dev, shape);
+    Stream s(dev);
+    for (int t = 0; t < 2; ++t) sim.frame(s, x, y);  // the second frame of a video
+    s.run();
+    want = y.download();
+  }
+  test::HostVulkan host;
+  ASSERT_NE(host.device, VK_NULL_HANDLE);
+  const VkDeviceSize bytes = xs.size() * sizeof(float);
+  test::HostBuffer xb(host, bytes), yb(host, bytes);
+  std::memcpy(xb.mapped, xs.data(), bytes);
+  test::HostQueue commands(host);
+  {
+    Device adopted(test::adopt(host), test::options());
+    Simulator sim(adopted, p, load_default_blur_model(adopted));
+    sim.reset(5);
+    const Tensor x = Tensor::wrap(adopted, xb.buffer, 0, shape);
+    const Tensor y = Tensor::wrap(adopted, yb.buffer, 0, shape);
+    Stream s(adopted, commands);
+    for (int t = 0; t < 2; ++t) sim.frame(s, x, y);
+    s.run();
+    EXPECT_EQ(commands.submits, 1);  // the whole frame pair is one host submission
+  }
+  const auto got = yb.floats();
+  test::expect_all_near(std::vector<float>(got.begin(), got.end()), want, 1e-5, 1e-5);
+  EXPECT_EQ(host.messages, 0);
 }
 
 // Noise only (no tilt, no blur): y − x has variance x/photons + read².
