@@ -147,6 +147,8 @@ void run_demo(const DemoArgs& a) {
   if (ec)
     throw Error("demo", "cannot create " + out.string() + ": " + ec.message(),
                 "pass a writable --out folder");
+  if (!fs::exists(a.video))
+    throw Error("demo", a.video + " is missing", "install Debian's opencv-doc (scripts/setup)");
   for (const char* f : {"montage.png", "vtest_strong.avi", "results.json", "report.md"})
     check_writable(out / f, a.force);
   const fs::path demo_dir = nets::face_api_model_dir().parent_path() / "demo";
@@ -162,8 +164,6 @@ void run_demo(const DemoArgs& a) {
                0, cv::INTER_AREA);
     photos.push_back({p.stem().string(), small, to_image(small), {}, {}});
   }
-  if (!fs::exists(a.video))
-    throw Error("demo", a.video + " is missing", "install Debian's opencv-doc (scripts/setup)");
 
   DeviceOptions dopt;
   dopt.selector = a.device;

@@ -14,7 +14,6 @@
 namespace vkjr2::sim {
 namespace {
 
-constexpr double kPi = std::numbers::pi;
 constexpr int kMaxOrder = 20;  // n ≤ 20 ⇔ j ≤ 231 (kMaxZernikeModes)
 // Table nodes: s = k / 64 up to 4 (fine enough for the oscillations of
 // the high orders), then 16 per octave up to 20; beyond, the asymptote.
