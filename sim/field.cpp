@@ -79,29 +79,19 @@ TurbulenceField::TurbulenceField(const Device& device, const Params& params,
   // at 4× the cost) and is clipped, and each mode is rescaled to unit variance.
   const std::int64_t k_modes = modes();
   const std::int64_t planes = k_modes * batch_;
-  std::vector<float> eig;
-  {
-    const int factor = 2;
-    torus_h_ = static_cast<int>(kernels::fft_next_length(std::max(2, factor * (grid_h_ - 1))));
-    torus_w_ = static_cast<int>(kernels::fft_next_length(std::max(2, factor * (grid_w_ - 1))));
-    eig = embedding_eigenvalues();
-    clipped_ = 0;
-    const std::int64_t m = std::int64_t(torus_h_) * torus_w_;
-    for (std::int64_t k = 0; k < k_modes; ++k) {
-      double positive = 0, negative = 0;
-      for (std::int64_t i = 0; i < m; ++i) {
-        const double v = eig[std::size_t((k * m + i) * 2)];
-        (v > 0 ? positive : negative) += std::fabs(v);
-      }
-      clipped_ = std::max(clipped_, negative / std::max(positive + negative, 1e-300));
-    }
-  }
+  torus_h_ = static_cast<int>(kernels::fft_next_length(std::max(2, 2 * (grid_h_ - 1))));
+  torus_w_ = static_cast<int>(kernels::fft_next_length(std::max(2, 2 * (grid_w_ - 1))));
+  const std::vector<float> eig = embedding_eigenvalues();
   const std::int64_t mh = torus_h_, mw = torus_w_, m = mh * mw;
   std::vector<float> spectrum(std::size_t(planes * m * 2));
+  clipped_ = 0;
   for (std::int64_t k = 0; k < k_modes; ++k) {
-    double positive = 0;
-    for (std::int64_t i = 0; i < m; ++i)
-      positive += std::max(0.0, double(eig[std::size_t((k * m + i) * 2)]));
+    double positive = 0, negative = 0;
+    for (std::int64_t i = 0; i < m; ++i) {
+      const double v = eig[std::size_t((k * m + i) * 2)];
+      (v > 0 ? positive : negative) += std::fabs(v);
+    }
+    clipped_ = std::max(clipped_, negative / std::max(positive + negative, 1e-300));
     // Clipping raises the variance above 1; rescale so that c(0) stays 1.
     const double renorm = positive > 0 ? double(m) / positive : 0.0;
     for (std::int64_t i = 0; i < m; ++i) {
