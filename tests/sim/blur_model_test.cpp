@@ -10,7 +10,7 @@
 #include <random>
 
 #include "support/expect.hpp"
-#include "support/gradcheck.hpp"
+#include "support/frame_gradcheck.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2::sim {
@@ -128,30 +128,8 @@ TEST_F(BlurModelTest, TiltAndBlurBackwardMatchesFiniteDifferences) {
   const auto blur = load_blur_model(dev, path_);
   const Params p = params(1, 2, 11, 13);
   Simulator sim(dev, p, blur, {});
-  const Shape shape{1, 2, 11, 13};
-  const auto w = test::random_floats(std::size_t(shape.numel()), 8);
-  auto loss = [&](std::span<const float> xv) {
-    Tensor x = Tensor::from(dev, shape, xv);
-    Tensor y = Tensor::empty(dev, shape);
-    sim.reset(5);
-    Stream s(dev);
-    sim.frame(s, x, y);
-    s.run();
-    const auto yv = y.download();
-    double l = 0;
-    for (std::size_t i = 0; i < yv.size(); ++i) l += double(w[i]) * yv[i];
-    return l;
-  };
-  const auto xs = test::random_floats(std::size_t(shape.numel()), 9, 0.f, 1.f);
-  Tensor x = Tensor::from(dev, shape, xs);
-  Tensor y = Tensor::empty(dev, shape), dy = Tensor::from(dev, shape, w),
-         dx = Tensor::empty(dev, shape);
-  sim.reset(5);
-  Stream s(dev);
-  sim.frame(s, x, y);
-  sim.frame_backward(s, dy, dx);
-  s.run();
-  test::expect_gradient_matches(loss, xs, dx.download(), "simulator tilt+blur d/dx");
+  test::expect_frame_gradient(sim, test::random_floats(std::size_t(2 * 11 * 13), 9, 0.f, 1.f), 8, 5,
+                              "simulator tilt+blur d/dx");
 }
 
 TEST_F(BlurModelTest, MismatchedOpticsAndMissingFilesAreClearErrors) {

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "support/expect.hpp"
-#include "support/gradcheck.hpp"
+#include "support/frame_gradcheck.hpp"
 #include "support/host_vulkan.hpp"
 #include "support/test_device.hpp"
 
@@ -169,30 +169,7 @@ TEST(Simulator, TiltBackwardMatchesFiniteDifferences) {
   Device& dev = test::device();
   const Params p = frame_params(1, 2, 12, 17);
   Simulator sim(dev, p, nullptr, tilt_only());
-  const Shape shape{1, 2, 12, 17};
-  const auto w = test::random_floats(std::size_t(shape.numel()), 5);
-  auto loss = [&](std::span<const float> xv) {
-    Tensor x = Tensor::from(dev, shape, xv);
-    Tensor y = Tensor::empty(dev, shape);
-    sim.reset(21);
-    Stream s(dev);
-    sim.frame(s, x, y);
-    s.run();
-    const auto yv = y.download();
-    double l = 0;
-    for (std::size_t i = 0; i < yv.size(); ++i) l += double(w[i]) * yv[i];
-    return l;
-  };
-  const auto xs = scene(p.image);
-  Tensor x = Tensor::from(dev, shape, xs);
-  Tensor y = Tensor::empty(dev, shape), dy = Tensor::from(dev, shape, w),
-         dx = Tensor::empty(dev, shape);
-  sim.reset(21);
-  Stream s(dev);
-  sim.frame(s, x, y);
-  sim.frame_backward(s, dy, dx);
-  s.run();
-  test::expect_gradient_matches(loss, xs, dx.download(), "simulator tilt d/dx");
+  test::expect_frame_gradient(sim, scene(p.image), 5, 21, "simulator tilt d/dx");
 }
 
 TEST(Simulator, BadInputsAreClearErrors) {
