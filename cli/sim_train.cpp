@@ -126,12 +126,18 @@ void add_sim_train(CLI::App& app) {
   cmd->add_option("--seed", t.seed, "Seed of the training draws (the basis uses --basis-seed)")
       ->default_val(t.seed);
   cmd->add_option("--basis-seed", b.seed, "Seed of the basis PSFs")->default_val(b.seed);
+  cmd->add_option("--residual-modes", b.residual_j_max,
+                  "The PSFs also carry Noll modes J+1..this (not network inputs), so the model "
+                  "predicts the mean PSF given a_4..a_J, residual blur included; <= J: none")
+      ->default_val(b.residual_j_max)
+      ->check(CLI::Range(4, sim::kMaxZernikeModes));
   cmd->add_option("--device", a->device,
                   "Vulkan device index or name substring (else VKJR2_DEVICE)");
   cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
   cmd->add_flag("--quiet", a->quiet, "No progress bar");
   cmd->add_flag("--force", a->force, "Replace an existing output file");
   cmd->callback([a] {
+    a->artifact.train.residual_j_max = a->artifact.basis.residual_j_max;
     if (a->artifact.basis.size % 2 == 0)
       throw InvalidArgument("--size", "must be odd (the PSF has a centre pixel)");
     run_sim_train(*a);

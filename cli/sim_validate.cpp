@@ -82,10 +82,13 @@ void add_sim_validate(CLI::App& app) {
   cmd->footer(
       "Checks: Noll covariance and tilt variance of the sampled fields, tilt correlation vs "
       "separation against the\n"
-      "path-integrated theory, AR(1) frame correlation, the phase screens' structure function, and "
-      "the fast\n"
-      "simulator's long-exposure PSF against the wave-optics reference. Each bound is 4 sigma of "
-      "its estimator\n"
+      "path-integrated theory, AR(1) frame correlation, the phase screens' structure function; "
+      "point sources through\n"
+      "both simulators: long-exposure PSF (fast vs wave optics), long- and short-exposure MTF "
+      "vs Fried's\n"
+      "exp{-3.44 (r/r0)^(5/3) [1 - alpha (r/D)^(1/3)]}, and the wave optics' G-tilt variance vs "
+      "theory and vs the\n"
+      "fast simulator. Each bound is 4 sigma of its estimator\n"
       "unless the row says otherwise. Exit code 1 when a check fails.\n"
       "Examples:\n  vkjr2 sim-validate\n  vkjr2 sim-validate --preset strong --json");
   cmd->add_option("--preset", a->preset, "Turbulence preset")

@@ -56,7 +56,9 @@ void main() {
     for (uint t = 0u; t < pc.term_count; ++t) {
       const vec4 term = texelFetch(terms, int(pc.term_offset + t));
       const float theta = kTwoPi * (term.x * x + term.y * y);
-      phi += term.z * cos(theta) - term.w * sin(theta);
+      // Re(c (e^{iθ} − 1)), cos θ − 1 as −2 sin²(θ/2): no piston (Subharmonic).
+      const float sh = sin(0.5 * theta);
+      phi += -2.0 * term.z * sh * sh - term.w * sin(theta);
     }
     const vec2 e = vec2(cos(phi), sin(phi));
     k = vec2(k.x * e.x - k.y * e.y, k.x * e.y + k.y * e.x);

@@ -94,5 +94,13 @@ double tilt_px(double a_tilt, const Params& params, int channel = 0);
 // One-axis Z-tilt angle variance (2/π)² (λ/D)² ⟨a2²⟩ (D/r0)^(5/3)
 // ≈ 0.182 (λ/D)² (D/r0)^(5/3) rad², for the parameters' channel.
 double tilt_angle_variance_rad2(const Params& params, int channel = 0);
+// One-axis G-tilt (aperture-averaged phase gradient: the PSF centroid, what a
+// camera sees) angle variance c_G (λ/D)² (D/r0)^(5/3) rad². By the divergence
+// theorem the mean x-gradient is (1/A)∮ φ n_x ds, so its variance is
+// −(1/2A²)∮∮ n_x n_x' D_φ(|s − s'|) ds ds' = −(π R²/2A²) ∫_0^{2π} cos u
+// D_φ(2R |sin(u/2)|) du (the ∮ n_x ds = 0 removes the constant of the
+// covariance); c_G ≈ 0.1698, 0.933 of the Z-tilt's 0.1819 (docs/sim.md §3).
+double g_tilt_constant();
+double g_tilt_angle_variance_rad2(const Params& params, int channel = 0);
 
 }  // namespace vkjr2::sim

@@ -139,18 +139,20 @@ Pairs draw_pairs(const WavePsf& psf, const PsfBasis& basis, const NollSampler& n
                  const P2sProgressFn& progress, const char* stage) {
   Rng rng(seed);
   Pairs p;
-  p.coeffs = draw_aberrations(rng, noll, c.d_over_r0_min, c.d_over_r0_max, count);
+  const std::vector<double> drawn =
+      draw_aberrations(rng, noll, c.d_over_r0_min, c.d_over_r0_max, count);
   const std::size_t modes = sz(psf.modes());
   const std::size_t pixels = sz(std::int64_t(basis.size) * basis.size);
   p.psfs.resize(sz(count) * pixels);
   constexpr int kChunk = 1024;
   for (int first = 0; first < count; first += kChunk) {
     const int n = std::min(kChunk, count - first);
-    psf.compute(std::span<const double>(p.coeffs).subspan(sz(first) * modes, sz(n) * modes),
+    psf.compute(std::span<const double>(drawn).subspan(sz(first) * modes, sz(n) * modes),
                 std::span<float>(p.psfs).subspan(sz(first) * pixels, sz(n) * pixels));
     if (progress) progress({stage, first + n, count, 0});
   }
   p.betas = project(basis, p.psfs);
+  p.coeffs = leading_columns(drawn, psf.modes(), basis.j_max - 3);
   return p;
 }
 
@@ -171,8 +173,9 @@ P2sTrainReport train_p2s(Device& device, P2sNet& net, const PsfBasis& basis,
     throw InvalidArgument(op, "needs steps ≥ 1, batch ≥ 1, train_samples ≥ batch, test_samples ≥ 1",
                           "check the P2sTrainConfig");
 
-  const WavePsf psf(device, PsfSampling{basis.nyquist, basis.size, basis.j_max, c.min_pupil_px});
-  const NollSampler noll(basis.j_max);
+  const int drawn = std::max(basis.j_max, c.residual_j_max);
+  const WavePsf psf(device, PsfSampling{basis.nyquist, basis.size, drawn, c.min_pupil_px});
+  const NollSampler noll(drawn);
   const Pairs train = draw_pairs(psf, basis, noll, c, c.seed, c.train_samples, progress, "data");
   P2sTrainReport report;
   report.data_seconds = seconds_since(t0);

@@ -86,6 +86,9 @@ struct P2sTrainConfig {
   double d_over_r0_max = 8.0;
   std::uint64_t seed = 2;  // aberrations and batch order; the test set uses seed + 1
   double min_pupil_px = 64;
+  // The target PSFs also carry a_{j_max+1}..a_{residual_j_max} (not inputs):
+  // the network learns E[PSF | a_4..a_{j_max}] (PsfBasisConfig::residual_j_max).
+  int residual_j_max = kMaxZernikeModes;
 };
 
 struct P2sTrainReport {

@@ -3,6 +3,7 @@
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/noll.hpp>
 #include <vkjr2/sim/phase_screen.hpp>
+#include <vkjr2/sim/quadrature.hpp>
 
 #include <algorithm>
 #include <array>
@@ -51,7 +52,32 @@ void validate(const ScreenGrid& grid, std::span<const ScreenLayer> layers) {
 // Signed frequency index of FFT bin u of an n-point transform.
 int signed_bin(int u, int n) { return u <= n / 2 ? u : u - n; }
 
-// Hermitian Gaussian spectrum with ⟨|c(f)|²⟩ = Φ(f) Δf², so that its inverse
+// Lattice bins with |u|, |v| ≤ this (and every subharmonic point) carry their
+// cell's power, not the PSD at the point times the cell's area.
+constexpr int kCellWeightedBins = 2;
+
+// The variance given to the frequency point f_c of a square cell of side h:
+// ∫_cell Φ(f) |f|² d²f / |f_c|². Near the origin Φ ∝ f^(−11/3) changes by
+// 10× across a cell, so the point value Φ(f_c) h² leaves D(r) 23 % low at
+// r = M dx/8 even with 3 subharmonic levels; weighting by |f|² keeps each
+// cell's contribution to D(r) ≈ Σ 4π² (f·r)² var (the low cells' regime,
+// r ≪ 1/f) exact (docs/sim.md, "Phase screens").
+double cell_power(double fx, double fy, double h, const ScreenLayer& layer) {
+  static const GaussLegendre gl(16);
+  double s = 0;
+  for (std::size_t i = 0; i < gl.x.size(); ++i) {
+    const double x = fx + gl.x[i] * h / 2;
+    for (std::size_t j = 0; j < gl.x.size(); ++j) {
+      const double y = fy + gl.x[j] * h / 2;
+      const double f2 = x * x + y * y;
+      s += gl.w[i] * gl.w[j] * von_karman_psd(std::sqrt(f2), layer) * f2;
+    }
+  }
+  return s * (h / 2) * (h / 2) / (fx * fx + fy * fy);
+}
+
+// Hermitian Gaussian spectrum with ⟨|c(f)|²⟩ = Φ(f) Δf² (screen_lattice_variance: the
+// cell-weighted power near the origin), so that its inverse
 // DFT (unnormalized) is a real screen with the PSD Φ.
 std::vector<std::complex<double>> hermitian_spectrum(const ScreenGrid& grid,
                                                      const ScreenLayer& layer, Rng& rng) {
@@ -63,10 +89,8 @@ std::vector<std::complex<double>> hermitian_spectrum(const ScreenGrid& grid,
       const std::size_t idx = std::size_t(u) * m + v;
       const std::size_t partner = std::size_t((m - u) % m) * m + (m - v) % m;
       if (idx > partner) continue;  // set with its partner
-      const double fu = signed_bin(u, m) * df;
-      const double fv = signed_bin(v, m) * df;
-      const double f = std::hypot(fu, fv);
-      const double amplitude = f == 0 ? 0.0 : std::sqrt(von_karman_psd(f, layer)) * df;
+      const double amplitude =
+          std::sqrt(screen_lattice_variance(signed_bin(u, m), signed_bin(v, m), df, layer));
       if (idx == partner) {  // DC and Nyquist bins: real
         c[idx] = amplitude * rng.normal();
       } else {
@@ -82,8 +106,8 @@ std::vector<std::complex<double>> hermitian_spectrum(const ScreenGrid& grid,
 
 // The subharmonics p = 1..levels of one screen: on each level the 8
 // non-centre points of a 3×3 grid of spacing Δf/3^p, as 4 conjugate pairs
-// (f, −f) so the sum is real: 2 Re(c e^{2πi f·x}) with c = a (n1 + i n2)/√2,
-// a = sqrt(Φ(|f|)) Δf_p (Johansson & Gavel 1994; Schmidt 2010, listing 9.3,
+// (f, −f) so the sum is real: 2 Re(c (e^{2πi f·x} − 1)) with c = a (n1 + i n2)/√2,
+// a² = screen_subharmonic_variance (Johansson & Gavel 1994; Schmidt 2010, listing 9.3,
 // which adds all 9 points of each grid, the centre with Φ = 0).
 std::vector<Subharmonic> draw_subharmonics(const ScreenGrid& grid, const ScreenLayer& layer,
                                            Rng& rng) {
@@ -93,7 +117,7 @@ std::vector<Subharmonic> draw_subharmonics(const ScreenGrid& grid, const ScreenL
   for (int p = 1; p <= grid.subharmonic_levels; ++p) {
     df /= 3;
     for (const auto& k : kHalfPlane) {
-      const double a = std::sqrt(von_karman_psd(df * std::hypot(k[0], k[1]), layer)) * df;
+      const double a = std::sqrt(screen_subharmonic_variance(k[0], k[1], df, layer));
       const double n1 = rng.normal();
       const double n2 = rng.normal();
       terms.push_back(
@@ -124,13 +148,28 @@ void add_subharmonics(const ScreenGrid& grid, std::span<const Subharmonic> terms
     for (std::size_t t = 0; t < terms.size(); ++t) {
       const std::complex<double> h = terms[t].coefficient * ey[t * m + r];
       const std::complex<double>* e = &ex[t * m];
-      for (int c = 0; c < m; ++c) row[c] += h.real() * e[c].real() - h.imag() * e[c].imag();
+      // Re(c (e^{iθ} − 1)): the term's value at the centre sample removed.
+      const double piston = terms[t].coefficient.real();
+      for (int c = 0; c < m; ++c)
+        row[c] += h.real() * e[c].real() - h.imag() * e[c].imag() - piston;
     }
     for (int c = 0; c < m; ++c) screen[std::size_t(r) * m + c] += static_cast<float>(row[c]);
   }
 }
 
 }  // namespace
+
+double screen_lattice_variance(int su, int sv, double df, const ScreenLayer& layer) {
+  if (su == 0 && sv == 0) return 0;
+  if (std::abs(su) <= kCellWeightedBins && std::abs(sv) <= kCellWeightedBins)
+    return cell_power(su * df, sv * df, df, layer);
+  return von_karman_psd(df * std::hypot(su, sv), layer) * df * df;
+}
+
+double screen_subharmonic_variance(int kx, int ky, double dp, const ScreenLayer& layer) {
+  if (kx == 0 && ky == 0) return 0;
+  return cell_power(kx * dp, ky * dp, dp, layer);
+}
 
 double von_karman_psd(double f_per_m, const ScreenLayer& layer) {
   const double f0 = std::isfinite(layer.outer_scale_m) ? 1.0 / layer.outer_scale_m : 0.0;
@@ -152,11 +191,8 @@ double screen_structure_function(const ScreenGrid& grid, const ScreenLayer& laye
   for (int u = 0; u < m; ++u) {
     const double fx = signed_bin(u, m) * df;
     const double weight = 1 - std::cos(2 * kPi * fx * r_m);
-    for (int v = 0; v < m; ++v) {
-      const double fy = signed_bin(v, m) * df;
-      if (fx == 0 && fy == 0) continue;
-      d += 2 * von_karman_psd(std::hypot(fx, fy), layer) * df * df * weight;
-    }
+    for (int v = 0; v < m; ++v)
+      d += 2 * screen_lattice_variance(signed_bin(u, m), signed_bin(v, m), df, layer) * weight;
   }
   double dp = df;
   for (int p = 1; p <= grid.subharmonic_levels; ++p) {
@@ -164,7 +200,7 @@ double screen_structure_function(const ScreenGrid& grid, const ScreenLayer& laye
     for (int kx = -1; kx <= 1; ++kx) {
       for (int ky = -1; ky <= 1; ++ky) {
         if (kx == 0 && ky == 0) continue;
-        d += 2 * von_karman_psd(dp * std::hypot(kx, ky), layer) * dp * dp *
+        d += 2 * screen_subharmonic_variance(kx, ky, dp, layer) *
              (1 - std::cos(2 * kPi * kx * dp * r_m));
       }
     }

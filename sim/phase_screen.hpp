@@ -25,9 +25,10 @@ struct ScreenGrid {
   // Subharmonic levels p = 1..levels (3×3 grids of spacing Δf/3^p, centre
   // excluded) restore the power below the FFT's lowest frequency
   // Δf = 1/(M dx); 0 = none. 3 is the usual choice (Schmidt 2010); the
-  // Kolmogorov spectrum converges slowly below Δf, so more levels (cheap, on
-  // the host) bring D(r) at r ~ M dx/4 closer to theory (docs/sim.md).
-  int subharmonic_levels = 3;
+  // Kolmogorov spectrum converges slowly below Δf (the missing share of D
+  // falls as 3^(−levels/3)): 10 levels leave D(r) 2 % low at r = M dx/8 and
+  // 5 % at 0.4 M dx, 3 levels 9 % and 28 % (docs/sim.md).
+  int subharmonic_levels = 10;
 };
 
 // The turbulence of one screen. inner_scale_m = 0 and outer_scale_m = ∞ give
@@ -43,30 +44,41 @@ struct ScreenLayer {
 //   fm = 5.92 / (2π l0), f0 = 1 / L0, c_Φ = phase_psd_constant().
 double von_karman_psd(double f_per_m, const ScreenLayer& layer);
 
+// The variance a screen gives each of its frequency points: lattice bin
+// (su, sv) (signed indices, spacing df = 1/(M dx)) and subharmonic point
+// (kx, ky) ∈ {−1, 0, 1}² of a level of spacing dp. Φ(f) df² far from the
+// origin; ∫_cell Φ(f) |f|² d²f / |f|² over the point's cell for the bins with
+// |su|, |sv| ≤ 2 and every subharmonic point (docs/sim.md, "Phase screens").
+double screen_lattice_variance(int su, int sv, double df, const ScreenLayer& layer);
+double screen_subharmonic_variance(int kx, int ky, double dp, const ScreenLayer& layer);
+
 // One screen per entry of `layers`, [layers.size(), M, M] row-major, radians.
 // Screens are made in pairs: screens 2j and 2j+1 are the real and imaginary
 // parts of one inverse c2c FFT (kernels::FftPlan, batched over the pairs) of
 // a + i b, a and b independent Hermitian Gaussian spectra with
-// ⟨|a(f)|²⟩ = Φ(f) Δf² (so each part is real and the two layers of a pair
-// may have different PSDs); the subharmonics are added on the host.
-// Deterministic: the same seed, grid and layers give the same screens
-// (one sim::Rng(seed) draws every Gaussian, in a fixed order).
-// Throws InvalidArgument for a bad size, spacing, r0 or scale. fft picks
-// where the inverse FFT runs (FftBackend::fftw: on the CPU, device unused);
-// the backends agree to float rounding.
+// ⟨|a(f)|²⟩ = Φ(f) Δf², cell-weighted near the origin (so each part is real and the two layers of a
+// pair may have different PSDs); the subharmonics are added on the host. Deterministic: the same
+// seed, grid and layers give the same screens (one sim::Rng(seed) draws every Gaussian, in a fixed
+// order). Throws InvalidArgument for a bad size, spacing, r0 or scale. fft picks where the inverse
+// FFT runs (FftBackend::fftw: on the CPU, device unused); the backends agree to float rounding.
 std::vector<float> phase_screens(const Device& device, const ScreenGrid& grid,
                                  std::span<const ScreenLayer> layers, std::uint64_t seed,
                                  FftBackend fft = FftBackend::device);
 
 // The expected structure function ⟨(φ(x + r e_x) − φ(x))²⟩ of the screens
 // phase_screens() makes (along a grid axis, r in metres): the discrete model
-// Σ 2 Φ(f) Δf² (1 − cos 2π f_x r) over the FFT lattice (DC excluded) and the
-// subharmonic points. Below Kolmogorov's C_D (r/r0)^(5/3) by the method's
-// deficit (docs/sim.md); tests compare screens and wave optics against it.
+// Σ 2 var(f) (1 − cos 2π f_x r) over the FFT lattice (DC excluded) and the
+// subharmonic points, var(f) = Φ(f) Δf² or, for the points near the origin,
+// ∫_cell Φ(f) |f|² d²f / |f|² (cell-weighted). Below Kolmogorov's
+// C_D (r/r0)^(5/3) by what lies below the last subharmonic level: 2 % at
+// r = M dx/8 with 10 levels (docs/sim.md); tests compare screens and wave
+// optics against it.
 double screen_structure_function(const ScreenGrid& grid, const ScreenLayer& layer, double r_m);
 
-// One subharmonic term of a screen: Re(coefficient · e^{2πi (fx x + fy y)}),
-// x, y in metres from the screen's centre sample (M/2, M/2). Smooth and
+// One subharmonic term of a screen: Re(coefficient · (e^{2πi (fx x + fy y)} − 1)),
+// x, y in metres from the screen's centre sample (M/2, M/2): its piston
+// removed, so that deep levels (huge coefficients at tiny f) add their
+// tilt and curvature without a constant that would swamp float phases. Smooth and
 // defined everywhere, unlike the FFT part, which is periodic with period M dx.
 struct Subharmonic {
   double fx_per_m = 0, fy_per_m = 0;

@@ -299,12 +299,26 @@ PsfBasis psf_basis_from_samples(std::span<const float> samples, int size, int co
 
 PsfBasis make_psf_basis(const Device& device, double nyquist, int j_max,
                         const PsfBasisConfig& config) {
-  const WavePsf psf(device, PsfSampling{nyquist, config.size, j_max, config.min_pupil_px});
-  const NollSampler noll(j_max);
+  const int drawn = std::max(j_max, config.residual_j_max);
+  const WavePsf psf(device, PsfSampling{nyquist, config.size, drawn, config.min_pupil_px});
+  const NollSampler noll(drawn);
   Rng rng(config.seed);
   const std::vector<double> a =
       draw_aberrations(rng, noll, config.d_over_r0_min, config.d_over_r0_max, config.samples);
   return psf_basis_from_samples(psf.compute(a), config.size, config.count, nyquist, j_max);
+}
+
+std::vector<double> leading_columns(std::span<const double> rows, int columns, int keep) {
+  if (columns < 1 || keep < 0 || keep > columns || rows.size() % sz(columns) != 0)
+    throw InvalidArgument("sim::leading_columns",
+                          "needs 0 ≤ keep ≤ columns and whole rows of `columns` values",
+                          "pass the draws' own column count");
+  const std::size_t n = rows.size() / sz(columns);
+  std::vector<double> out(n * sz(keep));
+  for (std::size_t i = 0; i < n; ++i)
+    std::copy_n(rows.begin() + std::ptrdiff_t(i * sz(columns)), keep,
+                out.begin() + std::ptrdiff_t(i * sz(keep)));
+  return out;
 }
 
 namespace {

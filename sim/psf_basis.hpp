@@ -75,6 +75,9 @@ class WavePsf {
 // `noll`, and drops the tilts a_2, a_3.
 std::vector<double> draw_aberrations(Rng& rng, const NollSampler& noll, double d_over_r0_min,
                                      double d_over_r0_max, int count);
+// The first `keep` columns of a row-major matrix with `columns` columns (the
+// inputs a_4..a_{j_max} of draws that go on to a_{residual_j_max}).
+std::vector<double> leading_columns(std::span<const double> rows, int columns, int keep);
 
 struct PsfBasis {
   int size = 0;                  // S (odd)
@@ -94,6 +97,13 @@ struct PsfBasisConfig {
   double d_over_r0_max = 8.0;
   std::uint64_t seed = 1;
   double min_pupil_px = 64;
+  // The PSFs also carry a_{j_max+1}..a_{residual_j_max}, drawn from Noll's
+  // statistics but not P2S inputs, so that the basis (and the network trained
+  // on the same kind of PSFs) represents E[PSF | a_4..a_{j_max}]: the blur of
+  // the modes a j_max-mode simulator leaves out, which 36 modes would
+  // otherwise miss (the short-exposure MTF at r = 0.1 D would be 9 % high at
+  // D/r0 = 3; docs/p2s.md). ≤ j_max: none.
+  int residual_j_max = kMaxZernikeModes;
 };
 
 // The PCA of `samples` (M × S² PSFs, M ≥ 2): ψ_0 = their mean, ψ_1..ψ_{K−1}
@@ -105,6 +115,7 @@ PsfBasis psf_basis_from_samples(std::span<const float> samples, int size, int co
                                 int j_max);
 
 // Draws config.samples PSFs (seeded) at `nyquist` and returns their basis.
+// The PSFs include the residual modes of config.residual_j_max.
 PsfBasis make_psf_basis(const Device& device, double nyquist, int j_max,
                         const PsfBasisConfig& config);
 

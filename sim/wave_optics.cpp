@@ -156,7 +156,9 @@ void modulate_on_host(const HostModulation& mod, std::size_t screen, std::span<f
       for (std::size_t t = 0; t < terms; ++t) {
         const std::complex<double> h = ey[t * n + r];
         const std::complex<double>* e = &ex[t * n];
-        for (int c = 0; c < n; ++c) phi[c] += h.real() * e[c].real() - h.imag() * e[c].imag();
+        const double piston = mod.terms[(screen * terms + t) * 4 + 2];  // Re(c): see Subharmonic
+        for (int c = 0; c < n; ++c)
+          phi[c] += h.real() * e[c].real() - h.imag() * e[c].imag() - piston;
       }
       for (int c = 0; c < n; ++c) {
         const std::size_t p = std::size_t(r) * n + c;

@@ -40,7 +40,7 @@ struct WaveConfig {
   int screens = 10;  // at least this many; more when a slab's Rytov number exceeds max_rytov
   double inner_scale_m = 0.0;                                      // l0 (0: none)
   double outer_scale_m = std::numeric_limits<double>::infinity();  // L0 (∞: none)
-  int subharmonic_levels = 3;       // per screen (ScreenGrid::subharmonic_levels)
+  int subharmonic_levels = 10;      // per screen (ScreenGrid::subharmonic_levels)
   double grid_over_aperture = 2.5;  // N·δ ≈ this × D before δ is set by the detector pitch
   double max_rytov = 0.1;           // per slab (Schmidt 2010, §9.5)
   // Schmidt's super-Gaussian absorber exp(−(r/w)^16), w = 0.47 N δ, at each

@@ -127,18 +127,19 @@ struct StructureCase {
   int screens;
 };
 
-// Measured D(r)/theory for 64² screens, r0 = 10 dx (± σ of the mean over the screens):
+// The screens' model D(r)/theory for 64² screens, r0 = 10 dx:
 //   lag          1      2      4      8      16 (= M/4)
-//   3 levels   0.813  0.836  0.811  0.765  0.702  (±0.007 … ±0.018)
-//   none       0.665  0.648  0.574  0.467  0.329  (±0.005 … ±0.009)
-//   10 levels  0.880  0.921  0.918  0.902  0.875  (±0.011 … ±0.027)
-// Each matches the screens' discrete model (screen_structure_function) within
-// 4σ; the model itself is pinned to an independent evaluation of the same
-// sums (a Python script, 4 digits). The deficit against Kolmogorov is the
-// method's (Schmidt's and aotools' screens have it too): the lattice samples
-// Φ ∝ f^(−11/3) at cell centres, and the power below Δf/3^levels is missing,
-// whose share of D falls only as (r Δf / 3^levels)^(1/3). At lag 1 another
-// ≈ 8 % is the power beyond the grid's Nyquist frequency.
+//   3 levels   0.841  0.871  0.856  0.823  0.771
+//   none       0.671  0.657  0.587  0.484  0.348
+//   10 levels  0.919  0.970  0.981  0.980  0.969
+// The screens match it within 4σ of the mean over the screens; the model is
+// pinned to an independent evaluation of the same sums (its own midpoint
+// cell integrals, 4 digits). The deficit against Kolmogorov is what lies
+// below Δf/3^levels, whose share of D falls only as (r Δf / 3^levels)^(1/3),
+// and, at lag 1, ≈ 8 % of power beyond the grid's Nyquist frequency. The
+// cells near the origin carry ∫Φ|f|²/|f_c|² (screen_lattice_variance): with
+// the PSD's point value instead (Schmidt's and aotools' screens), 3 levels
+// gave 0.814 … 0.710 and 10 levels 0.88 … 0.875.
 TEST(PhaseScreen, StructureFunctionMatchesItsModelAndKolmogorov) {
   constexpr int kSize = 64;
   constexpr double kDx = 0.01;
@@ -163,16 +164,19 @@ TEST(PhaseScreen, StructureFunctionMatchesItsModelAndKolmogorov) {
       // 4σ of the mean over independent screens.
       EXPECT_NEAR(measured.mean, model, 4 * measured.sigma_of_mean) << "lag " << lag;
       if (sc.levels == 3 && lag == 1) {
-        EXPECT_NEAR(model / theory, 0.8137, 1e-3);
+        EXPECT_NEAR(model / theory, 0.8409, 2e-3);
       }
       if (sc.levels == 3 && lag == 16) {
-        EXPECT_NEAR(model / theory, 0.7102, 1e-3);
+        EXPECT_NEAR(model / theory, 0.7712, 2e-3);
       }
       if (sc.levels == 0 && lag == 1) {
-        EXPECT_NEAR(model / theory, 0.6592, 1e-3);
+        EXPECT_NEAR(model / theory, 0.6710, 2e-3);
       }
       if (sc.levels == 0 && lag == 16) {
-        EXPECT_NEAR(model / theory, 0.3252, 1e-3);
+        EXPECT_NEAR(model / theory, 0.3479, 2e-3);
+      }
+      if (sc.levels == 10 && lag == 16) {
+        EXPECT_NEAR(model / theory, 0.9688, 2e-3);
       }
       if (lag == max_lag) ratio_at_quarter[which] = measured.mean / theory;
     }
@@ -186,7 +190,7 @@ TEST(PhaseScreen, StructureFunctionMatchesItsModelAndKolmogorov) {
   EXPECT_LT(ratio_at_quarter[1], 0.40);
   EXPECT_LT(ratio_at_quarter[1], 0.6 * ratio_at_quarter[0]);
   EXPECT_GT(ratio_at_quarter[2], ratio_at_quarter[0] + 0.05);
-  EXPECT_LT(ratio_at_quarter[2], 1.0);
+  EXPECT_LT(ratio_at_quarter[2], 1.1);  // model 0.969, σ of the mean ≈ 0.03
 }
 
 TEST(PhaseScreen, AmplitudeScalesAsR0ToTheMinusFiveSixths) {

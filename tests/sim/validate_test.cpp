@@ -18,7 +18,7 @@ TEST(SimValidate, QuickChecksPass) {
   c.screens = 16;
   c.psf_frames = 16;
   const auto rows = validate_simulator(dev, "moderate", c, load_default_blur_model(dev));
-  ASSERT_EQ(rows.size(), 11u);
+  ASSERT_EQ(rows.size(), 21u);
   for (const auto& r : rows) {
     EXPECT_TRUE(r.pass()) << r.check << ": " << r.measured << " ± " << r.sigma << " vs "
                           << r.expected << " (tol " << r.tolerance << ")";

@@ -413,7 +413,7 @@ double mean_gradient(const float* u, const WavePlan& plan,
 
 // The screens' expected covariance of the G-tilts of two sources whose
 // screens are shifted by s_i along x relative to each other, in the
-// geometric-optics limit: Σ_i Σ_f Φ_i(f) Δf² |H(f)|² cos(2π f_x s_i) over the
+// geometric-optics limit: Σ_i Σ_f var_i(f) |H(f)|² cos(2π f_x s_i) over the
 // lattice and subharmonic points, H(f) = (e^{2πi f·e δ} − 1)/δ · mean over
 // the pairs of e^{2πi f·x} (the estimator above, linearized). One value per
 // entry of shifts_m (each a shift per screen, metres).
@@ -427,15 +427,14 @@ std::vector<double> model_tilt_covariance(const WavePlan& plan, int levels,
   for (double r0 : plan.r0_scaled_m) strength.push_back(std::pow(r0, -5.0 / 3.0));
   // Separable: mean over pairs of e^{2πi(fx x + fy y)} = Σ_rows e^{2πi fy y} Σ_cols e^{2πi fx x}.
   std::vector<double> sums(shifts_m.size(), 0.0);
-  const auto add = [&](double fx, double fy, double df) {
+  const auto add = [&](double fx, double fy, double variance) {
     std::complex<double> a = 0;
     for (const auto& p : pairs) {
       a += std::polar(1.0, 2 * kPi * (fx * (p[1] - centre) + fy * (p[0] - centre)) * dx);
     }
     a /= double(pairs.size());
     const double s = std::sin(kPi * (along_x ? fx : fy) * dx);
-    const double base = von_karman_psd(std::hypot(fx, fy), ScreenLayer{1.0}) * df * df * 4 * s * s /
-                        (dx * dx) * std::norm(a);
+    const double base = variance * 4 * s * s / (dx * dx) * std::norm(a);
     for (std::size_t j = 0; j < shifts_m.size(); ++j) {
       double weight = 0;
       for (std::size_t i = 0; i < strength.size(); ++i) {
@@ -448,7 +447,10 @@ std::vector<double> model_tilt_covariance(const WavePlan& plan, int levels,
   for (int u = 0; u < m; ++u) {
     for (int v = 0; v < m; ++v) {
       const double fy = (u <= m / 2 ? u : u - m) * df, fx = (v <= m / 2 ? v : v - m) * df;
-      if (fx != 0 || fy != 0) add(fx, fy, df);
+      if (fx != 0 || fy != 0)
+        add(fx, fy,
+            screen_lattice_variance(v <= m / 2 ? v : v - m, u <= m / 2 ? u : u - m, df,
+                                    ScreenLayer{1.0}));
     }
   }
   double dp = df;
@@ -456,7 +458,8 @@ std::vector<double> model_tilt_covariance(const WavePlan& plan, int levels,
     dp /= 3;
     for (int kx = -1; kx <= 1; ++kx) {
       for (int ky = -1; ky <= 1; ++ky) {
-        if (kx != 0 || ky != 0) add(kx * dp, ky * dp, dp);
+        if (kx != 0 || ky != 0)
+          add(kx * dp, ky * dp, screen_subharmonic_variance(kx, ky, dp, ScreenLayer{1.0}));
       }
     }
   }
