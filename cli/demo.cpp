@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "commands.hpp"
+#include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
 #include "sim_common.hpp"
@@ -165,9 +166,7 @@ void run_demo(const DemoArgs& a) {
     photos.push_back({p.stem().string(), small, to_image(small), {}, {}});
   }
 
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  const Device device(dopt);
+  const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   const auto blur = sim::load_default_blur_model(device);
   Stream stream(device);

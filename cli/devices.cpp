@@ -9,6 +9,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 
 namespace vkjr2::cli {
 namespace {
@@ -46,7 +47,7 @@ void run_devices(const DevicesArgs& args) {
   try {
     selected = select_device(devices, selector);
   } catch (const InvalidArgument& e) {
-    std::fprintf(stderr, "vkjr2: warning: %s\n", e.what());
+    log_warn(e.what());
   }
   if (args.json) {
     nlohmann::json out = nlohmann::json::array();

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 #include "media.hpp"
 
 namespace vkjr2::cli {
@@ -64,12 +65,6 @@ jr2::FaceOptions options_of(const FaceArgs& a, bool descriptors) {
   o.descriptors = descriptors;
   o.align = a.align == "similarity" ? jr2::AlignMode::similarity : jr2::AlignMode::face_api;
   return o;
-}
-
-Device open_device(const FaceArgs& a) {
-  DeviceOptions o;
-  o.selector = a.device;
-  return Device(o);
 }
 
 json box_json(const nets::FaceBox& b) {
@@ -155,7 +150,7 @@ void run_detect(const DetectArgs& a) {
     if (video) throw InvalidArgument("--draw", "drawing is for single images", "pass an image");
     check_writable(a.draw, a.force);
   }
-  const Device device = open_device(a);
+  const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
   const jr2::FaceOptions opts = options_of(a, false);
@@ -240,7 +235,7 @@ struct EmbedArgs : FaceArgs {
 };
 
 void run_embed(const EmbedArgs& a) {
-  const Device device = open_device(a);
+  const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
   json all = json::array();
@@ -249,7 +244,7 @@ void run_embed(const EmbedArgs& a) {
     const Described d = describe(analyzer, stream, device, in, a);
     if (d.faces.empty()) {
       ++without;
-      std::fprintf(stderr, "vkjr2: warning: no face found in %s\n", in.c_str());
+      log_warn("no face found in " + in);
     }
     if (a.json) {
       json fj = json::array();
@@ -283,7 +278,7 @@ struct VerifyArgs : FaceArgs {
 };
 
 void run_verify(const VerifyArgs& a) {
-  const Device device = open_device(a);
+  const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
   const Described da = describe(analyzer, stream, device, a.a_path, a);
@@ -319,7 +314,7 @@ void run_identify(const IdentifyArgs& a) {
     throw Error("identify", "gallery " + a.gallery + " is not a folder",
                 "pass --gallery DIR with one sub-folder of images per identity");
   }
-  const Device device = open_device(a);
+  const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
   std::vector<jr2::GalleryEntry> gallery;
@@ -332,8 +327,7 @@ void run_identify(const IdentifyArgs& a) {
     for (const fs::path& img : list_images(dir)) {
       const Described d = describe(analyzer, stream, device, img, a);
       if (d.faces.empty()) {
-        std::fprintf(stderr, "vkjr2: warning: no face in gallery image %s (skipped)\n",
-                     img.string().c_str());
+        log_warn("no face in gallery image " + img.string() + " (skipped)");
         continue;
       }
       gallery.push_back({dir.filename().string(), img.string(), d.faces.front().descriptor});

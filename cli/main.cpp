@@ -9,6 +9,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 
 namespace {
 
@@ -25,10 +26,18 @@ int run(int argc, char** argv) {
   CLI::App app{"vkjr2 — Joint Restoration-for-Recognition on Vulkan compute shaders"};
   app.require_subcommand(1);
   app.set_version_flag("--version", std::string("vkjr2 ") + VKJR2_VERSION);
+  // Parent options are taken after the subcommand too: vkjr2 simulate ... --log-level info.
+  app.fallthrough();
+  app.add_option_function<std::string>(
+         "--log-level",
+         [](const std::string& v) { vkjr2::cli::set_log_level(vkjr2::cli::parse_log_level(v)); },
+         "Messages on stderr: error, warn (default), info (device, files written), debug")
+      ->envname("VKJR2_LOG_LEVEL")
+      ->check(CLI::IsMember(vkjr2::cli::log_level_names()));
   app.footer(
       "Environment: VKJR2_DEVICE (index or name substring), VKJR2_VALIDATION=1 (Khronos "
       "validation layer), VKJR2_PROFILE=1 (per-kernel GPU times), VKJR2_CACHE_DIR (face models),\n"
-      "VKJR2_ARTIFACT_DIR (trained simulator artifacts).\n"
+      "VKJR2_ARTIFACT_DIR (trained simulator artifacts), VKJR2_LOG_LEVEL (as --log-level).\n"
       "Exit codes: 0 success, 1 runtime error (message on stderr), 2 bad command line, "
       "3 no Vulkan device.");
   vkjr2::cli::add_demo(app);

@@ -13,6 +13,8 @@
 #include <cmath>
 #include <system_error>
 
+#include "log.hpp"
+
 namespace vkjr2::cli {
 namespace {
 
@@ -168,6 +170,8 @@ void write_png(const std::filesystem::path& path, const Image& image, bool force
                 "check that the folder exists and is writable");
   }
   std::filesystem::rename(tmp, path);
+  log_info("wrote " + path.string() + " (" + std::to_string(image.shape[1]) + "x" +
+           std::to_string(image.shape[0]) + ")");
 }
 
 double video_fps(const std::filesystem::path& path) {
@@ -241,6 +245,7 @@ void VideoWriter::finish() {
   }
   std::filesystem::rename(tmp_, path_);
   finished_ = true;
+  log_info("wrote " + path_.string() + " (" + std::to_string(frames_) + " frames)");
 }
 
 std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir) {

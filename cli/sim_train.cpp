@@ -12,6 +12,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
 
@@ -38,9 +39,7 @@ struct TrainArgs {
 void run_sim_train(TrainArgs& a) {
   check_writable(a.output, a.force);
   const sim::Params params = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  Device device(dopt);
+  Device device = open_device(a.device);
   std::map<std::string, std::unique_ptr<Progress>> bars;
   auto progress = [&](const sim::P2sProgress& p) {
     auto& bar = bars[p.stage];

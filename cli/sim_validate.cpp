@@ -12,6 +12,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 #include "progress.hpp"
 
 namespace vkjr2::cli {
@@ -30,9 +31,7 @@ void run_sim_validate(ValidateArgs& a) {
     a.config.screens = 16;
     a.config.psf_frames = 16;
   }
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  const Device device(dopt);
+  const Device device = open_device(a.device);
   const auto blur = a.no_psf ? nullptr : sim::load_default_blur_model(device);
   Progress bar("sim-validate", a.no_psf ? 2 : 3, a.quiet);
   const auto t0 = std::chrono::steady_clock::now();

@@ -16,6 +16,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
 #include "sim_common.hpp"
@@ -92,21 +93,28 @@ void dump_fields(const sim::Simulator& sim, const fs::path& dir, bool force) {
   nets::write_file_atomic(dir / "fields.json", std::as_bytes(std::span(text)), "--dump-fields");
 }
 
-void run_simulate(const SimArgs& a) {
-  const fs::path in(a.input), out(a.output);
-  if (!fs::exists(in)) throw Error("simulate", a.input + " does not exist", "check the path");
+struct Result {
+  json summary;
+  std::string text;
+};
+
+// One input file → one output file, on a Simulator made for its frame size.
+Result simulate_one(const Device& device, const std::shared_ptr<const sim::BlurModel>& blur,
+                    const SimArgs& a, const fs::path& in, const fs::path& out, std::uint64_t seed) {
+  const std::string in_name = in.string(), out_name = out.string();
+  if (!fs::exists(in)) throw Error("simulate", in_name + " does not exist", "check the path");
   const bool video_in = is_video_path(in);
   if (!video_in && !is_image_path(in)) {
     throw InvalidArgument("simulate",
-                          a.input + " is neither an image nor a video (by its extension)",
+                          in_name + " is neither an image nor a video (by its extension)",
                           "pass .png/.jpg/.tif/.npy or .avi/.mp4/...");
   }
   const bool video_out = is_video_path(out);
   if (!video_out && out.extension() != ".png") {
-    throw InvalidArgument("simulate", a.output + ": write a .png image or a video (.avi, .mp4)");
+    throw InvalidArgument("simulate", out_name + ": write a .png image or a video (.avi, .mp4)");
   }
   if (video_in && !video_out) {
-    throw InvalidArgument("simulate", "a video input needs a video output, got " + a.output,
+    throw InvalidArgument("simulate", "a video input needs a video output, got " + out_name,
                           "name OUT .avi or .mp4");
   }
   if (!video_in && !video_out && a.frames > 1) {
@@ -114,14 +122,6 @@ void run_simulate(const SimArgs& a) {
                           "name OUT .avi or .mp4");
   }
   check_writable(out, a.force);
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  const Device device(dopt);
-  std::shared_ptr<const sim::BlurModel> blur;
-  if (!a.no_blur) {
-    blur = a.blur_model.empty() ? sim::load_default_blur_model(device)
-                                : sim::load_blur_model(device, a.blur_model);
-  }
   sim::SimOptions so;
   so.blur = !a.no_blur;
   so.tilt = !a.no_tilt;
@@ -138,15 +138,14 @@ void run_simulate(const SimArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   const std::size_t total =
       video_in ? std::size_t(a.max_frames) : std::size_t(std::max(1, a.frames));
-  Progress progress("simulate", total, a.quiet);
+  Progress progress("simulate " + in.filename().string(), total, a.quiet);
   auto step = [&](const Image& img) {
     const auto h = img.shape[0], w = img.shape[1];
     if (!sim) {
       const sim::Params p = params_for_image(a.path, int(h), int(w));
       sim = std::make_unique<sim::Simulator>(device, p, blur, so);
-      for (const auto& warn : sim->derived().warnings)
-        std::fprintf(stderr, "vkjr2: warning: %s\n", warn.c_str());
-      sim->reset(a.seed);
+      for (const auto& warn : sim->derived().warnings) log_warn(warn);
+      sim->reset(seed);
       stream = std::make_unique<Stream>(device);
       const Shape shape{1, p.image.channels, h, w};
       x = Tensor::empty(device, shape);
@@ -156,7 +155,7 @@ void run_simulate(const SimArgs& a) {
                                                a.force);
       }
     } else if (h != sim->params().image.height || w != sim->params().image.width) {
-      throw Error("simulate", a.input + " changes frame size mid-stream",
+      throw Error("simulate", in_name + " changes frame size mid-stream",
                   "re-encode it at one size");
     }
     const int channels = sim->params().image.channels;
@@ -184,34 +183,107 @@ void run_simulate(const SimArgs& a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const sim::ChannelDerived& c0 = sim->derived().channels[0];
   const auto& im = sim->params().image;
-  if (a.json_out) {
-    json j = {{"input", a.input},
-              {"output", a.output},
-              {"frames", done},
-              {"height", im.height},
-              {"width", im.width},
-              {"channels", im.channels},
-              {"seconds", seconds},
-              {"fps", double(done) / seconds},
-              {"seed", a.seed},
-              {"blur", so.blur},
-              {"tilt", so.tilt},
-              {"r0_m", c0.r0_m},
-              {"d_over_r0", c0.d_over_r0},
-              {"isoplanatic_angle_px", c0.isoplanatic_angle_px},
-              {"tilt_std_px", c0.tilt_std_px},
-              {"rytov", c0.rytov},
-              {"grid", {sim->field().grid_h(), sim->field().grid_w()}},
-              {"warnings", sim->derived().warnings}};
-    std::printf("%s\n", j.dump(2).c_str());
-  } else {
-    std::printf("simulate: %s -> %s: %zu frame(s) %lldx%lldx%d in %.2f s (%.2f frames/s)\n",
-                a.input.c_str(), a.output.c_str(), done, static_cast<long long>(im.width),
+  Result r;
+  r.summary = {{"input", in_name},
+               {"output", out_name},
+               {"frames", done},
+               {"height", im.height},
+               {"width", im.width},
+               {"channels", im.channels},
+               {"seconds", seconds},
+               {"fps", double(done) / seconds},
+               {"seed", seed},
+               {"blur", so.blur},
+               {"tilt", so.tilt},
+               {"r0_m", c0.r0_m},
+               {"d_over_r0", c0.d_over_r0},
+               {"isoplanatic_angle_px", c0.isoplanatic_angle_px},
+               {"tilt_std_px", c0.tilt_std_px},
+               {"rytov", c0.rytov},
+               {"grid", {sim->field().grid_h(), sim->field().grid_w()}},
+               {"warnings", sim->derived().warnings}};
+  char line[512];
+  std::snprintf(line, sizeof line,
+                "simulate: %s -> %s: %zu frame(s) %lldx%lldx%d in %.2f s (%.2f frames/s)\n",
+                in_name.c_str(), out_name.c_str(), done, static_cast<long long>(im.width),
                 static_cast<long long>(im.height), im.channels, seconds, double(done) / seconds);
-    std::printf("  %s\n", sim::summary(sim->params(), sim->derived()).c_str());
-    std::printf("  field grid %dx%d (step %.2f px), tilt %s, blur %s\n", sim->field().grid_w(),
-                sim->field().grid_h(), sim->field().step_x_px(), so.tilt ? "on" : "off",
-                so.blur ? "on" : "off");
+  r.text = line;
+  r.text += "  " + sim::summary(sim->params(), sim->derived()) + "\n";
+  std::snprintf(line, sizeof line, "  field grid %dx%d (step %.2f px), tilt %s, blur %s\n",
+                sim->field().grid_w(), sim->field().grid_h(), sim->field().step_x_px(),
+                so.tilt ? "on" : "off", so.blur ? "on" : "off");
+  r.text += line;
+  return r;
+}
+
+// The image and video files directly in `dir`, sorted by name.
+std::vector<fs::path> list_media(const fs::path& dir) {
+  std::vector<fs::path> files;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    if (e.is_regular_file() && (is_image_path(e.path()) || is_video_path(e.path())))
+      files.push_back(e.path());
+  }
+  std::sort(files.begin(), files.end());
+  return files;
+}
+
+void run_simulate(const SimArgs& a) {
+  const fs::path in(a.input), out(a.output);
+  const bool folder = fs::is_directory(in);
+  std::vector<std::pair<fs::path, fs::path>> jobs;  // (input, output)
+  if (folder) {
+    if (fs::exists(out) && !fs::is_directory(out))
+      throw InvalidArgument("simulate",
+                            "IN is a folder, so OUT must be one; " + a.output + " is a file",
+                            "pass a folder for OUT (it is created when missing)");
+    if (!a.dump_fields.empty())
+      throw InvalidArgument("--dump-fields", "takes a single input file, IN is a folder",
+                            "dump the fields of one file at a time");
+    const auto files = list_media(in);
+    if (files.empty())
+      throw Error("simulate", a.input + " holds no image or video",
+                  "put .png/.jpg/.tif/.npy or .avi/.mp4/... files in it");
+    for (const fs::path& f : files) {
+      const bool video = is_video_path(f) || a.frames > 1;
+      jobs.emplace_back(f, out / (f.stem().string() + (video ? ".avi" : ".png")));
+    }
+    // Refuse before any work when two inputs would write one output.
+    for (std::size_t i = 1; i < jobs.size(); ++i)
+      for (std::size_t k = 0; k < i; ++k)
+        if (jobs[i].second == jobs[k].second)
+          throw InvalidArgument("simulate",
+                                jobs[k].first.string() + " and " + jobs[i].first.string() +
+                                    " would both write " + jobs[i].second.string(),
+                                "rename one of them");
+    for (const auto& job : jobs) check_writable(job.second, a.force);
+    std::error_code ec;
+    fs::create_directories(out, ec);
+    if (ec)
+      throw Error("simulate", "cannot create " + a.output + ": " + ec.message(),
+                  "pass a writable folder");
+  } else {
+    jobs.emplace_back(in, out);
+  }
+  const Device device = open_device(a.device);
+  std::shared_ptr<const sim::BlurModel> blur;
+  if (!a.no_blur) {
+    blur = a.blur_model.empty() ? sim::load_default_blur_model(device)
+                                : sim::load_blur_model(device, a.blur_model);
+  }
+  json all = json::array();
+  for (std::size_t i = 0; i < jobs.size(); ++i) {
+    // Each file of a folder gets its own turbulence: seed + its position.
+    const Result r = simulate_one(device, blur, a, jobs[i].first, jobs[i].second, a.seed + i);
+    if (a.json_out) {
+      all.push_back(r.summary);
+    } else {
+      std::fputs(r.text.c_str(), stdout);
+    }
+  }
+  if (a.json_out) {
+    const json j =
+        folder ? json{{"input", a.input}, {"output", a.output}, {"files", all}} : all.front();
+    std::printf("%s\n", j.dump(2).c_str());
   }
 }
 
@@ -227,10 +299,16 @@ void add_simulate(CLI::App& app) {
       "  vkjr2 simulate face.png clip.avi --frames 60          # a turbulent video from one image\n"
       "  vkjr2 simulate vtest.avi vtest_turb.avi --max-frames 100 --dump-fields fields/\n"
       "  vkjr2 simulate in.png out.png --config path.json --photons 2000 --read-noise 0.005\n"
+      "  vkjr2 simulate faces/ faces_turb/ --preset moderate   # every image/video in a folder\n"
+      "A folder IN writes OUT/<name>.png per image (.avi per video, or with --frames > 1); file i "
+      "(sorted by name) uses seed + i.\n"
       "Presets: weak, moderate, strong (1 km path, D = 0.2 m, f = 1.6 m; docs/sim.md).");
-  cmd->add_option("IN", a->input, "Input image (.png, .jpg, .tif, .npy) or video (.avi, .mp4, ...)")
+  cmd->add_option(
+         "IN", a->input,
+         "Input image (.png, .jpg, .tif, .npy), video (.avi, .mp4, ...) or a folder of them")
       ->required();
-  cmd->add_option("OUT", a->output, "Output .png image or video (.avi Motion-JPEG, .mp4)")
+  cmd->add_option("OUT", a->output,
+                  "Output .png image or video (.avi Motion-JPEG, .mp4); a folder when IN is one")
       ->required();
   add_path_options(cmd, a->path);
   cmd->add_option("--seed", a->seed, "Seed of the turbulence and the noise")->default_val(1);

@@ -12,6 +12,7 @@
 #include <string>
 
 #include "commands.hpp"
+#include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
 #include "sim_common.hpp"
@@ -38,9 +39,7 @@ void run_wave(WaveArgs& a) {
   const Image img = read_image(in);
   const sim::Params p = params_for_image(a.path, int(img.shape[0]), int(img.shape[1]));
   a.config.wave.fft = a.fft == "fftw" ? sim::FftBackend::fftw : sim::FftBackend::device;
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  const Device device(dopt);
+  const Device device = open_device(a.device);
   sim::WaveImageReport rep;
   Progress bar("wave: source rows", 0, a.quiet);
   const auto t0 = std::chrono::steady_clock::now();
@@ -51,7 +50,7 @@ void run_wave(WaveArgs& a) {
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   write_png(out, from_planes(y, p.image.channels, img.shape[0], img.shape[1]), a.force);
   const sim::WavePlan& plan = rep.plans.front();
-  for (const auto& w : plan.warnings) std::fprintf(stderr, "vkjr2: warning: %s\n", w.c_str());
+  for (const auto& w : plan.warnings) log_warn(w);
   if (a.json_out) {
     const nlohmann::json j = {{"input", a.input},
                               {"output", a.output},

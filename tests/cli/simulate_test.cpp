@@ -137,6 +137,56 @@ TEST(CliSimulate, BadInputsAreOneLineErrors) {
   EXPECT_NE(r.output.find("Examples"), std::string::npos);
 }
 
+// A folder in, a folder out: one output per image or video, named after it,
+// each with its own seed (seed + position); other files are ignored.
+TEST(CliSimulate, FolderToFolder) {
+  TempDir tmp("simulate_folder");
+  const fs::path in = tmp.path / "in", out = tmp.path / "out";
+  fs::create_directories(in);
+  const fs::path scene = write_scene(tmp.path, 40, 48);
+  fs::copy_file(scene, in / "a.png");
+  fs::copy_file(scene, in / "b.png");
+  {
+    std::ofstream notes(in / "notes.txt");
+    notes << "not an image";
+  }
+  auto r = run_cli("simulate " + in.string() + " " + out.string() +
+                   " --preset strong --seed 3 --json --quiet --log-level info");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("vkjr2: info: device"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("vkjr2: info: wrote " + (out / "a.png").string()), std::string::npos)
+      << r.output;
+  const json j = parse_json(r.output.substr(r.output.find('{')));
+  ASSERT_EQ(j["files"].size(), 2u);
+  EXPECT_EQ(j["files"][0]["seed"], 3);
+  EXPECT_EQ(j["files"][1]["seed"], 4);
+  EXPECT_EQ(j["files"][1]["output"], (out / "b.png").string());
+  ASSERT_TRUE(fs::exists(out / "a.png"));
+  ASSERT_TRUE(fs::exists(out / "b.png"));
+  EXPECT_FALSE(fs::exists(out / "notes.png"));
+  // Same input, different seeds → different turbulence.
+  const cv::Mat a = cv::imread((out / "a.png").string()), b = cv::imread((out / "b.png").string());
+  EXPECT_GT(mean_abs_diff(a, b), 1.0);
+  // Without --force nothing is overwritten, and the refusal comes before any work.
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("already exists"), std::string::npos) << r.output;
+  // Default log level: no info lines.
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --quiet --force");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(r.output.find("vkjr2: info:"), std::string::npos) << r.output;
+  // A folder IN needs a folder OUT; an empty folder is an error.
+  r = run_cli("simulate " + in.string() + " " + (out / "a.png").string() + " --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("must be one"), std::string::npos) << r.output;
+  fs::create_directories(tmp.path / "empty");
+  r = run_cli("simulate " + (tmp.path / "empty").string() + " " + out.string() + " --quiet");
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.output.find("holds no image or video"), std::string::npos) << r.output;
+  r = run_cli("devices --log-level loud");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
 TEST(CliSimTrain, TrainsASmallModelTheSimulatorUses) {
   TempDir tmp("sim_train");
   const fs::path model = tmp.path / "tiny.safetensors";
