@@ -8,9 +8,9 @@ namespace {
 
 constexpr std::uint32_t kSampleGroup = 128;  // warp_sample*.comp: one pixel per invocation
 constexpr std::uint32_t kPackGroup = 256;    // warp_pack_rgba: 256 invocations in x
-constexpr std::uint32_t kRgbaTileX = 32, kRgbaTileY = 4;  // warp_sample_rgba workgroup
-constexpr std::uint32_t kAbsMaxPerGroup = 4096;           // warp_absmax: 256 invocations × 16
-constexpr std::uint32_t kToFloatPerGroup = 1024;          // warp_fixed_to_float: 256 × 4
+constexpr std::uint32_t kRgbaTileX = 128, kRgbaTileY = 1;  // warp_sample_rgba workgroup
+constexpr std::uint32_t kAbsMaxPerGroup = 4096;            // warp_absmax: 256 invocations × 16
+constexpr std::uint32_t kToFloatPerGroup = 1024;           // warp_fixed_to_float: 256 × 4
 
 // Mirrors the push block of shaders/warp_sampling.glsl.
 struct SamplePush {
