@@ -2,6 +2,8 @@
 // wave-optics reference on the same parameters, measured twice in the same
 // run: on the same device, and with its FFTs on FFTW on the CPU (the
 // fastest wave optics a user of this machine could run).
+// vkjr2 bench kernels: the kernels benchmarks of bench/kernels_bench
+// (bench/kernels_cases.cpp), each kernel against OpenCV, FFTW or plain C++.
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/blur_model.hpp>
@@ -18,6 +20,7 @@
 #include <vector>
 
 #include "bench/harness.hpp"
+#include "bench/kernels_cases.hpp"
 #include "commands.hpp"
 
 namespace vkjr2::cli {
@@ -165,6 +168,48 @@ void run_bench_sim(const BenchSimArgs& a) {
   if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
 }
 
+struct BenchKernelsArgs {
+  std::string device, json_path;
+  std::vector<std::string> only;
+  bool full = false;
+  bool json_out = false;
+};
+
+void run_bench_kernels(const BenchKernelsArgs& a) {
+  DeviceOptions dopt;
+  dopt.selector = a.device;
+  const Device device(dopt);
+  const bench::KernelsRun run = bench::run_kernel_cases(device, a.only, a.full, "bench kernels");
+  bench::print_kernels_table(device, run);
+  const nlohmann::json out = bench::kernels_json(device, run);
+  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
+  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
+}
+
+void add_bench_kernels(CLI::App& bench_cmd) {
+  auto a = std::make_shared<BenchKernelsArgs>();
+  CLI::App* cmd = bench_cmd.add_subcommand(
+      "kernels", "Kernels vs OpenCV, FFTW and plain C++ on this machine (bench/kernels_bench)");
+  std::string names;
+  for (const bench::KernelCase& c : bench::kernel_cases()) {
+    names +=
+        "\n  " + c.id + std::string(c.id.size() < 15 ? 15 - c.id.size() : 1, ' ') + c.description;
+  }
+  cmd->footer(
+      "Example:\n  vkjr2 bench kernels --only warp,add --json-file kernels.json\n"
+      "Benchmarks (--only; psf-direct-100 runs only with --full or when named):" +
+      names);
+  cmd->add_option("--only", a->only, "Run only these benchmarks (comma-separated)")
+      ->delimiter(',')
+      ->check(CLI::IsMember(bench::kernel_case_ids()));
+  cmd->add_flag("--full", a->full, "Also run the direct PSF-basis K=100 case (minutes)");
+  cmd->add_option("--device", a->device,
+                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  cmd->add_option("--json-file", a->json_path, "Also write the results as JSON here");
+  cmd->add_flag("--json", a->json_out, "Print the JSON after the table");
+  cmd->callback([a] { run_bench_kernels(*a); });
+}
+
 }  // namespace
 
 void add_bench(CLI::App& app) {
@@ -176,8 +221,8 @@ void add_bench(CLI::App& app) {
       "Fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)");
   sim_cmd->footer(
       "Example:\n  vkjr2 bench sim --json-file bench_sim.json\n"
-      "Kernels, runtime and face networks: build/release/bench/{kernels,runtime,nets}_bench "
-      "(bench/RESULTS.md).");
+      "Kernels: vkjr2 bench kernels. Runtime and face networks: "
+      "build/release/bench/{runtime,nets}_bench (bench/RESULTS.md).");
   sim_cmd->add_option("--preset", a->preset, "Turbulence preset")
       ->default_val("moderate")
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
@@ -198,6 +243,7 @@ void add_bench(CLI::App& app) {
   sim_cmd->add_option("--json-file", a->json_path, "Also write the results as JSON here");
   sim_cmd->add_flag("--json", a->json_out, "Print the JSON after the table");
   sim_cmd->callback([a] { run_bench_sim(*a); });
+  add_bench_kernels(*cmd);
 }
 
 }  // namespace vkjr2::cli

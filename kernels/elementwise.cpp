@@ -7,7 +7,8 @@
 namespace vkjr2::kernels {
 namespace {
 
-constexpr std::uint32_t kPerGroup = 1024;  // 256 invocations × 4 elements
+constexpr std::uint32_t kPerGroup = 1024;      // 256 invocations × 4 elements
+constexpr std::uint32_t kVec4PerGroup = 1024;  // ew_binary4: 256 invocations × 4 vec4
 
 struct UnaryPush {
   std::uint32_t n;
@@ -17,7 +18,10 @@ struct UnaryPush {
 struct BinaryPush {
   std::uint32_t n, hw, channels;
 };
-static_assert(sizeof(UnaryPush) <= 128 && sizeof(BinaryPush) <= 128);
+struct Binary4Push {
+  std::uint32_t n4;
+};
+static_assert(sizeof(UnaryPush) <= 128 && sizeof(BinaryPush) <= 128 && sizeof(Binary4Push) <= 128);
 
 enum class BinaryOp : std::uint32_t { add = 0, sub = 1, mul = 2 };
 
@@ -31,6 +35,20 @@ void binary(Stream& stream, const char* op_name, BinaryOp op, const Tensor& a, c
   require_f32(out, op_name, "out");
   require_same_shape(a, b, op_name, "a", "b");
   require_same_shape(a, out, op_name, "a", "out");
+  // The one selection point: vec4 texels when the count and every offset allow
+  // them (LAVAPIPE.md: vector gathers from texel buffers, more work per invocation).
+  const bool vec4_ok =
+      n % 4 == 0 && a.vk_offset() % 16 == 0 && b.vk_offset() % 16 == 0 && out.vk_offset() % 16 == 0;
+  if (vec4_ok) {
+    static const KernelDef k4{"ew_binary4",
+                              {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                              sizeof(Binary4Push)};
+    const VkFormat rgba = VK_FORMAT_R32G32B32A32_SFLOAT;
+    stream.dispatch(k4, {texel(a, rgba), texel(b, rgba), vkjr2::out(out)}, Binary4Push{n / 4},
+                    groups_1d(div_up(n / 4, kVec4PerGroup), stream.device().info()),
+                    {std::uint32_t(op)});
+    return;
+  }
   stream.dispatch(k, {texel(a), texel(b), vkjr2::out(out)}, BinaryPush{n, 1, 1},
                   groups_1d(div_up(n, kPerGroup), stream.device().info()), {std::uint32_t(op), 0u});
 }

@@ -6,9 +6,11 @@
 namespace vkjr2::kernels {
 namespace {
 
-constexpr std::uint32_t kSampleGroup = 128;       // warp_sample*.comp: one pixel per invocation
-constexpr std::uint32_t kAbsMaxPerGroup = 4096;   // warp_absmax: 256 invocations × 16
-constexpr std::uint32_t kToFloatPerGroup = 1024;  // warp_fixed_to_float: 256 × 4
+constexpr std::uint32_t kSampleGroup = 128;  // warp_sample*.comp: one pixel per invocation
+constexpr std::uint32_t kPackGroup = 256;    // warp_pack_rgba: 256 invocations in x
+constexpr std::uint32_t kRgbaTileX = 128, kRgbaTileY = 1;  // warp_sample_rgba workgroup
+constexpr std::uint32_t kAbsMaxPerGroup = 4096;            // warp_absmax: 256 invocations × 16
+constexpr std::uint32_t kToFloatPerGroup = 1024;           // warp_fixed_to_float: 256 × 4
 
 // Mirrors the push block of shaders/warp_sampling.glsl.
 struct SamplePush {
@@ -23,6 +25,12 @@ struct AbsMaxPush {
   std::uint32_t n;
 };
 
+// Mirrors the push block of shaders/warp_pack_rgba.comp.
+struct PackPush {
+  std::uint32_t n_batch, channels, plane, groups;
+};
+static_assert(sizeof(PackPush) <= 128);
+
 SamplePush make_push(const detail::SampleGeometry& g) {
   std::uint32_t log2 = 0;
   const std::uint64_t plane_out = std::uint64_t(g.out_h) * g.out_w;
@@ -36,6 +44,24 @@ SamplePush make_push(const detail::SampleGeometry& g) {
           g.padding == SamplePadding::border ? 1u : 0u,
           g.align_corners ? 1u : 0u,
           log2};
+}
+
+// The one place the forward sampler is chosen. RGBA: pack the image into
+// RGBA texels first (one pass) so that each bilinear tap is one texel read
+// for four channels; worth it from 3 channels when the output is not much
+// smaller than the input (warp: same size; a small grid_sample crop of a
+// large image would pay the pack for pixels it never reads).
+bool use_rgba_sampler(const detail::SampleGeometry& g, const DeviceInfo& info) {
+  const std::uint64_t plane_in = std::uint64_t(g.in_h) * g.in_w;
+  const std::uint64_t plane_out = std::uint64_t(g.out_h) * g.out_w;
+  const std::uint64_t groups = div_up(g.channels, 4);
+  const std::uint64_t texels = std::uint64_t(g.n_batch) * groups * plane_in;
+  const auto& max_groups = info.max_workgroup_count;
+  return g.channels >= 3 && plane_in <= 2 * plane_out && texels <= info.max_texel_buffer_elements &&
+         16 * texels <= info.max_storage_buffer_range &&
+         div_up(plane_in, kPackGroup) <= max_groups[0] && g.n_batch * groups <= max_groups[1] &&
+         div_up(g.out_w, kRgbaTileX) <= max_groups[0] &&
+         div_up(g.out_h, kRgbaTileY) <= max_groups[1] && g.n_batch <= max_groups[2];
 }
 
 VkFormat coords_format(const detail::SampleGeometry& g) {
@@ -72,8 +98,36 @@ void sample_forward(Stream& stream, const SampleGeometry& g, const Tensor& img,
   static const KernelDef kSample{"warp_sample",
                                  {BindingKind::texel, BindingKind::texel, BindingKind::storage},
                                  sizeof(SamplePush)};
-  stream.dispatch(kSample, {texel(img), texel(coords, coords_format(g)), vkjr2::out(out)},
-                  make_push(g), pixel_groups(g, stream), {g.grid_mode ? 1u : 0u});
+  static const KernelDef kPack{
+      "warp_pack_rgba", {BindingKind::texel, BindingKind::storage}, sizeof(PackPush)};
+  static const KernelDef kSampleRgba{"warp_sample_rgba",
+                                     {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                                     sizeof(SamplePush)};
+  const DeviceInfo& info = stream.device().info();
+  if (!use_rgba_sampler(g, info)) {
+    stream.dispatch(kSample, {texel(img), texel(coords, coords_format(g)), vkjr2::out(out)},
+                    make_push(g), pixel_groups(g, stream), {g.grid_mode ? 1u : 0u});
+    return;
+  }
+  const std::uint32_t groups = div_up(g.channels, 4);
+  const std::uint32_t plane = g.in_h * g.in_w;
+  const std::uint64_t texels = std::uint64_t(g.n_batch) * groups * plane;
+  const Tensor packed =
+      Tensor::empty(stream.device(), Shape{std::int64_t(texels), 4});  // N×G×H×W×4
+  // Four pixels per invocation where every channel plane starts on a 16-byte boundary.
+  const bool quads = plane % 4 == 0 && img.vk_offset() % 16 == 0;
+  stream.dispatch(kPack,
+                  {texel(img, quads ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
+                   vkjr2::out(packed)},
+                  PackPush{g.n_batch, g.channels, plane, groups},
+                  Groups{div_up(quads ? plane / 4 : plane, kPackGroup), g.n_batch * groups, 1},
+                  {quads ? 1u : 0u});
+  stream.dispatch(kSampleRgba,
+                  {texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(coords, coords_format(g)),
+                   vkjr2::out(out)},
+                  make_push(g),
+                  Groups{div_up(g.out_w, kRgbaTileX), div_up(g.out_h, kRgbaTileY), g.n_batch},
+                  {g.grid_mode ? 1u : 0u});
 }
 
 void sample_backward(Stream& stream, const SampleGeometry& g, const Tensor& img,

@@ -19,9 +19,11 @@ void expect_close(const std::vector<float>& got, const std::vector<float>& want,
   test::expect_all_near(got, want, rtol, atol);
 }
 
-// Shapes: odd, not dividing the 1024-element group, 1×1 images, rank 1..4.
-const std::vector<Shape> kShapes = {{1},   {7}, {3, 5}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31},
-                                    {1025}};
+// Shapes: odd, not dividing the 1024-element group, 1×1 images, rank 1..4;
+// multiples of 4 (the vec4 binary path) with a partial last group (4092,
+// 4100) and exact groups (2×4096).
+const std::vector<Shape> kShapes = {
+    {1}, {7}, {3, 5}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31}, {1025}, {4100}, {2, 4096}};
 
 TEST(ElementwiseKernels, BinaryMatchReference) {
   Device& dev = test::device();
@@ -38,6 +40,32 @@ TEST(ElementwiseKernels, BinaryMatchReference) {
     kernels::mul(s, a, b, o[2]);
     s.run();
     for (int op = 0; op < 3; ++op) expect_close(o[op].download(), ref::binary(op, av, bv));
+  }
+}
+
+// A sub-tensor view at a 16-byte offset (the vec4 path binds it as RGBA
+// texels), each op against the reference.
+TEST(ElementwiseKernels, BinaryOnViewsMatchReference) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 12;
+  constexpr std::int64_t n = 2052;
+  const auto av = test::random_floats(n + 8, seed), bv = test::random_floats(n + 8, seed + 1);
+  Tensor a = Tensor::from(dev, {n + 8}, av), b = Tensor::from(dev, {n + 8}, bv);
+  for (const std::int64_t offset : {4, 8}) {
+    SCOPED_TRACE("offset " + std::to_string(offset) + " seed " + std::to_string(seed));
+    const Tensor va = a.view({n}, offset), vb = b.view({n}, offset);
+    Tensor o = Tensor::empty(dev, {n + 8});
+    const Tensor vo = o.view({n}, offset);
+    const std::vector<float> sa(av.begin() + offset, av.begin() + offset + n),
+        sb(bv.begin() + offset, bv.begin() + offset + n);
+    for (int op = 0; op < 3; ++op) {
+      Stream s(dev);
+      if (op == 0) kernels::add(s, va, vb, vo);
+      if (op == 1) kernels::sub(s, va, vb, vo);
+      if (op == 2) kernels::mul(s, va, vb, vo);
+      s.run();
+      expect_close(vo.download(), ref::binary(op, sa, sb));
+    }
   }
 }
 

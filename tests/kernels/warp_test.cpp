@@ -228,18 +228,25 @@ TEST(WarpKernel, GradcheckFlow) {
 // included (as in PyTorch: 0 · NaN = NaN).
 TEST(WarpKernel, NonFiniteInputs) {
   Device& dev = test::device();
-  const Dims d{1, 2, 3, 4};
-  std::vector<float> img(24, 1.f);
-  std::vector<float> flow(24, 0.f);
-  flow[5] = NAN;            // dx of pixel 5
-  flow[12 + 7] = INFINITY;  // dy of pixel 7
-  img[12 + 2] = NAN;        // channel 1, pixel 2
-  const auto out = run_warp(dev, d, img, flow, SamplePadding::zeros);
-  for (int p = 0; p < 12; ++p) {
-    SCOPED_TRACE("pixel " + std::to_string(p));
-    EXPECT_EQ(std::isnan(out[p]), p == 5 || p == 7);
-    EXPECT_EQ(std::isnan(out[12 + p]),
-              p == 5 || p == 7 || p == 2 || p == 1);  // 1 reads 2 at weight 0
+  // 2 channels: one channel per texel read; 3 and 5: the RGBA-packed sampler.
+  for (const int c : {2, 3, 5}) {
+    SCOPED_TRACE("channels " + std::to_string(c));
+    const Dims d{1, c, 3, 4};
+    std::vector<float> img(std::size_t(12 * c), 1.f);
+    std::vector<float> flow(24, 0.f);
+    flow[5] = NAN;            // dx of pixel 5
+    flow[12 + 7] = INFINITY;  // dy of pixel 7
+    img[12 + 2] = NAN;        // channel 1, pixel 2
+    const auto out = run_warp(dev, d, img, flow, SamplePadding::zeros);
+    for (int ch = 0; ch < c; ++ch) {
+      for (int p = 0; p < 12; ++p) {
+        SCOPED_TRACE("channel " + std::to_string(ch) + " pixel " + std::to_string(p));
+        const bool bad_flow = p == 5 || p == 7;
+        // pixel 1 reads pixel 2 at weight 0
+        EXPECT_EQ(std::isnan(out[std::size_t(12 * ch + p)]),
+                  bad_flow || (ch == 1 && (p == 2 || p == 1)));
+      }
+    }
   }
 }
 

@@ -1,0 +1,54 @@
+// `vkjr2 bench kernels` as a user runs it (`bench sim`: simulate_test.cpp).
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "support/cli_files.hpp"
+#include "support/run_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using vkjr2::test::parse_json;
+using vkjr2::test::run_cli;
+using vkjr2::test::TempDir;
+
+// One small case (warp 512², about a second): the table, the printed JSON and
+// the JSON file, each row against its peer.
+TEST(CliBenchKernels, OneCaseTableAndJson) {
+  TempDir tmp("bench_kernels");
+  const fs::path file = tmp.path / "kernels.json";
+  const auto r = run_cli("bench kernels --only warp --json --json-file " + file.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("cv::remap"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("ratio"), std::string::npos) << r.output;
+  std::ifstream f(file);
+  const json written = json::parse(f, nullptr, false);
+  ASSERT_TRUE(written.is_object()) << r.output;
+  const json printed = parse_json(r.output.substr(r.output.find("\n{")));
+  EXPECT_EQ(printed, written);
+  ASSERT_EQ(written["results"].size(), 1u);
+  const json& row = written["results"][0];
+  EXPECT_EQ(row["name"], "warp bilinear 512x512x3");
+  EXPECT_EQ(row["unit"], "Mpix/s");
+  EXPECT_EQ(row["peer"], "cv::remap");
+  EXPECT_GT(row["value"].get<double>(), 0);
+  EXPECT_GT(row["peer_value"].get<double>(), 0);
+  EXPECT_NEAR(row["ratio_vs_peer"].get<double>(),
+              row["value"].get<double>() / row["peer_value"].get<double>(), 1e-9);
+  EXPECT_FALSE(row.contains("fraction_of_device_peak"));  // memory-bound: no peak fraction
+  EXPECT_FALSE(written.contains("device_fma_peak_gflops"));
+}
+
+TEST(CliBenchKernels, UnknownBenchmarkIsAUsageError) {
+  const auto r = run_cli("bench kernels --only warp,no-such-kernel");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("no-such-kernel"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("fft-256"), std::string::npos) << r.output;  // lists the known ones
+}
+
+}  // namespace
