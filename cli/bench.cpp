@@ -22,6 +22,7 @@
 #include "bench/harness.hpp"
 #include "bench/kernels_cases.hpp"
 #include "commands.hpp"
+#include "log.hpp"
 
 namespace vkjr2::cli {
 namespace {
@@ -45,9 +46,7 @@ std::vector<float> test_scene(int channels, int h, int w) {
 }
 
 void run_bench_sim(const BenchSimArgs& a) {
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  const Device device(dopt);
+  const Device device = open_device(a.device);
   const auto blur = sim::load_default_blur_model(device);
   std::vector<bench::Result> rows;
   nlohmann::json per_size = nlohmann::json::array();
@@ -176,9 +175,7 @@ struct BenchKernelsArgs {
 };
 
 void run_bench_kernels(const BenchKernelsArgs& a) {
-  DeviceOptions dopt;
-  dopt.selector = a.device;
-  const Device device(dopt);
+  const Device device = open_device(a.device);
   const bench::KernelsRun run = bench::run_kernel_cases(device, a.only, a.full, "bench kernels");
   bench::print_kernels_table(device, run);
   const nlohmann::json out = bench::kernels_json(device, run);
