@@ -4,7 +4,8 @@
 // an M×M screen, bilinear with wrap-around, plus its subharmonic terms
 // evaluated at the shifted position (they are not periodic). field [B, N, N]
 // complex; mask [N, N] complex (absorber or transfer function); shifts [B]
-// in pixels; terms (fx, fy in cycles per pixel, coefficient re, im).
+// in pixels; terms (fx, fy in cycles per pixel, coefficient re, im) of the
+// first levels, then 4 texels of the deeper levels' polynomial.
 #include "common.glsl"
 layout(local_size_x = 256) in;
 layout(binding = 0) uniform samplerBuffer screens;  // R32F
@@ -60,6 +61,17 @@ void main() {
       const float sh = sin(0.5 * theta);
       phi += -2.0 * term.z * sh * sh - term.w * sin(theta);
     }
+    // The deeper levels: Σ a_k u^i v^(d−i) by degree d = 1..4, i = d..0, at
+    // u = x/N, v = y/N (sim/wave_optics.cpp, subharmonic_polynomial).
+    const uint q = pc.term_offset + pc.term_count;
+    const vec4 a0 = texelFetch(terms, int(q)), a1 = texelFetch(terms, int(q + 1u));
+    const vec4 a2 = texelFetch(terms, int(q + 2u)), a3 = texelFetch(terms, int(q + 3u));
+    const float u = x / float(pc.n), v = y / float(pc.n);
+    const float u2 = u * u, v2 = v * v, uv = u * v;
+    phi += a0.x * u + a0.y * v;
+    phi += a0.z * u2 + a0.w * uv + a1.x * v2;
+    phi += a1.y * u2 * u + a1.z * u2 * v + a1.w * u * v2 + a2.x * v2 * v;
+    phi += a2.y * u2 * u2 + a2.z * u2 * uv + a2.w * u2 * v2 + a3.x * uv * v2 + a3.y * v2 * v2;
     const vec2 e = vec2(cos(phi), sin(phi));
     k = vec2(k.x * e.x - k.y * e.y, k.x * e.y + k.y * e.x);
   }

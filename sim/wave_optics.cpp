@@ -102,6 +102,57 @@ struct HostModulation {
   std::span<const float> screens, masks, shifts, terms;
 };
 
+// Deep subharmonic levels as a polynomial. A term Re(c (e^{iθ} − 1)),
+// θ = α u + β v (u = x/N, v = y/N in pixels from the grid centre), is
+// −Im(c) θ − Re(c) θ²/2 + Im(c) θ³/6 + Re(c) θ⁴/24 + O(|c| θ⁵/120); with
+// θ ≤ kPolynomialMaxPhase over every sample read that is ≤ 1e-7 |c|, below the
+// float rounding of the phase. Coefficients of u^i v^(d−i), by degree d = 1..4
+// and i = d..0: 14 of them.
+constexpr std::size_t kPolynomialCoefficients = 14;
+constexpr std::size_t kPolynomialTexels = 4;
+constexpr double kPolynomialMaxPhase = 0.1;
+
+// Levels evaluated term by term: level p's points have |fx| + |fy| ≤
+// 2/(3^p M) cycles per pixel, so θ ≤ 2π·2·reach/(3^p M) at |x|, |y| ≤ reach px.
+int exact_subharmonic_levels(int levels, int m, double reach_px) {
+  int p = 1;
+  double scale = 3;
+  while (p <= levels && 2 * kPi * 2 * reach_px / (scale * m) > kPolynomialMaxPhase) {
+    ++p;
+    scale *= 3;
+  }
+  return p - 1;
+}
+
+std::array<double, kPolynomialCoefficients> subharmonic_polynomial(
+    std::span<const Subharmonic> terms, double dx, int n) {
+  std::array<double, kPolynomialCoefficients> a{};
+  for (const Subharmonic& t : terms) {
+    const double alpha = 2 * kPi * t.fx_per_m * dx * n, beta = 2 * kPi * t.fy_per_m * dx * n;
+    const double re = t.coefficient.real(), im = t.coefficient.imag();
+    const std::array<double, 5> weight{0, -im, -re / 2, im / 6, re / 24};
+    std::size_t k = 0;
+    for (int d = 1; d <= 4; ++d) {
+      double binomial = 1;  // C(d, i), i from d down to 0
+      for (int i = d; i >= 0; --i) {
+        a[k++] += weight[std::size_t(d)] * binomial * std::pow(alpha, i) * std::pow(beta, d - i);
+        binomial = binomial * i / (d - i + 1);
+      }
+    }
+  }
+  return a;
+}
+
+double evaluate_polynomial(const float* a, double u, double v) {
+  const std::array<double, 5> up{1, u, u * u, u * u * u, u * u * u * u};
+  const std::array<double, 5> vp{1, v, v * v, v * v * v, v * v * v * v};
+  double sum = 0;
+  std::size_t k = 0;
+  for (std::size_t d = 1; d <= 4; ++d)
+    for (std::size_t i = d + 1; i-- > 0;) sum += double(a[k++]) * up[i] * vp[d - i];
+  return sum;
+}
+
 // wave_modulate on the host, for one screen and every source: field *=
 // mask 0 · exp(i φ(x + shift)), φ bilinear in the periodic screen (wrapped)
 // plus the subharmonic terms at the shifted position. Within a source the
@@ -111,7 +162,8 @@ void modulate_on_host(const HostModulation& mod, std::size_t screen, std::span<f
   const int n = mod.n;
   const int m = mod.m;
   const std::size_t plane = std::size_t(n) * n;
-  const std::size_t terms = mod.terms_per_screen;
+  const std::size_t terms = mod.terms_per_screen - kPolynomialTexels;  // exact terms
+  const float* poly = &mod.terms[(screen * mod.terms_per_screen + terms) * 4];
   const float* phase = &mod.screens[screen * std::size_t(m) * m];
   const float* absorber = mod.masks.data();  // mask 0
   std::vector<std::complex<double>> ex(terms * n), ey(terms * n);
@@ -135,7 +187,7 @@ void modulate_on_host(const HostModulation& mod, std::size_t screen, std::span<f
       row1[i] = wrap(int(y_floor) + i + 1);
     }
     for (std::size_t t = 0; t < terms; ++t) {
-      const float* term = &mod.terms[(screen * terms + t) * 4];
+      const float* term = &mod.terms[(screen * mod.terms_per_screen + t) * 4];
       const std::complex<double> coefficient(term[2], term[3]);
       for (int i = 0; i < n; ++i) {
         const double x = double(i - centre) + shift[0];
@@ -156,10 +208,13 @@ void modulate_on_host(const HostModulation& mod, std::size_t screen, std::span<f
       for (std::size_t t = 0; t < terms; ++t) {
         const std::complex<double> h = ey[t * n + r];
         const std::complex<double>* e = &ex[t * n];
-        const double piston = mod.terms[(screen * terms + t) * 4 + 2];  // Re(c): see Subharmonic
+        const double piston = mod.terms[(screen * mod.terms_per_screen + t) * 4 + 2];  // Re(c)
         for (int c = 0; c < n; ++c)
           phi[c] += h.real() * e[c].real() - h.imag() * e[c].imag() - piston;
       }
+      const double row_v = (double(r - centre) + shift[1]) / n;
+      for (int c = 0; c < n; ++c)
+        phi[c] += evaluate_polynomial(poly, (double(c - centre) + shift[0]) / n, row_v);
       for (int c = 0; c < n; ++c) {
         const std::size_t p = std::size_t(r) * n + c;
         const std::complex<double> k =
@@ -235,34 +290,45 @@ std::vector<float> propagate(const Device& device, const Params& params, const W
   }
   const ScreenParts parts = phase_screen_parts(device, ScreenGrid{m, dx, config.subharmonic_levels},
                                                layers, config.seed, config.fft);
-  const std::size_t terms_per_screen = 4 * std::size_t(config.subharmonic_levels);
+  // Per screen and source: the shear θ L (L − z)/z of the screen, in pixels.
+  std::vector<float> shifts(screens * batch * 2);
+  double max_shift_px = 0;
+  for (std::size_t i = 0; i < screens; ++i) {
+    const double z = plan.z_m[i];
+    for (std::size_t b = 0; b < batch; ++b) {
+      for (int axis = 0; axis < 2; ++axis) {
+        const double px = angles_rad[b][axis] * length * (length - z) / z / dx;
+        shifts[(i * batch + b) * 2 + axis] = static_cast<float>(px);
+        max_shift_px = std::max(max_shift_px, std::abs(px));
+      }
+    }
+  }
+
+  // Subharmonic levels 1..exact are evaluated term by term; the deeper ones,
+  // smooth across everything the sources read, as one polynomial per screen.
+  const int exact = exact_subharmonic_levels(config.subharmonic_levels, m, n / 2.0 + max_shift_px);
+  const std::size_t exact_terms = 4 * std::size_t(exact);
+  const std::size_t terms_per_screen = exact_terms + kPolynomialTexels;
   std::vector<float> screen_values(screens * screen_plane, 0.0f);
-  // (fx, fy) in cycles per pixel, coefficient (re, im); at least one texel.
-  std::vector<float> term_values(std::max<std::size_t>(1, screens * terms_per_screen) * 4, 0.0f);
+  // Texels: exact terms (fx, fy in cycles per pixel, coefficient re, im),
+  // then the polynomial's 14 coefficients (and 2 zeros).
+  std::vector<float> term_values(screens * terms_per_screen * 4, 0.0f);
   for (std::size_t i = 0; i < screens; ++i) {
     if (layer_of[i] == SIZE_MAX) continue;
     std::copy_n(&parts.periodic[layer_of[i] * screen_plane], screen_plane,
                 &screen_values[i * screen_plane]);
     const auto& sh = parts.subharmonics[layer_of[i]];
-    for (std::size_t t = 0; t < sh.size(); ++t) {
+    for (std::size_t t = 0; t < std::min(exact_terms, sh.size()); ++t) {
       float* v = &term_values[(i * terms_per_screen + t) * 4];
       v[0] = static_cast<float>(sh[t].fx_per_m * dx);
       v[1] = static_cast<float>(sh[t].fy_per_m * dx);
       v[2] = static_cast<float>(sh[t].coefficient.real());
       v[3] = static_cast<float>(sh[t].coefficient.imag());
     }
-  }
-
-  // Per screen and source: the shear θ L (L − z)/z of the screen, in pixels.
-  std::vector<float> shifts(screens * batch * 2);
-  for (std::size_t i = 0; i < screens; ++i) {
-    const double z = plan.z_m[i];
-    for (std::size_t b = 0; b < batch; ++b) {
-      for (int axis = 0; axis < 2; ++axis) {
-        shifts[(i * batch + b) * 2 + axis] =
-            static_cast<float>(angles_rad[b][axis] * length * (length - z) / z / dx);
-      }
-    }
+    const std::array<double, kPolynomialCoefficients> poly =
+        subharmonic_polynomial(std::span(sh).subspan(std::min(exact_terms, sh.size())), dx, n);
+    float* v = &term_values[(i * terms_per_screen + exact_terms) * 4];
+    for (std::size_t k = 0; k < poly.size(); ++k) v[k] = static_cast<float>(poly[k]);
   }
 
   // Mask 0: the absorber (Schmidt 2010, §8.6: exp(−(r/w)^16), w = 0.47 N δ);
@@ -327,7 +393,7 @@ std::vector<float> propagate(const Device& device, const Params& params, const W
                             std::uint32_t(mask * plane),
                             std::uint32_t(screen * batch),
                             std::uint32_t(screen * terms_per_screen),
-                            use_screen ? std::uint32_t(terms_per_screen) : 0u};
+                            use_screen ? std::uint32_t(exact_terms) : 0u};
     stream.dispatch(kModulate,
                     {texel(screen_t), texel(mask_t, VK_FORMAT_R32G32_SFLOAT),
                      texel(shift_t, VK_FORMAT_R32G32_SFLOAT),
