@@ -240,7 +240,19 @@ void run_embed(const EmbedArgs& a) {
   Stream stream(device);
   json all = json::array();
   std::size_t without = 0;
+  // A folder stands for its images, sorted by name.
+  std::vector<std::string> inputs;
   for (const std::string& in : a.inputs) {
+    if (!fs::is_directory(in)) {
+      inputs.push_back(in);
+      continue;
+    }
+    const auto images = list_images(in);
+    if (images.empty())
+      throw Error("embed", in + " holds no image", "put .png/.jpg/.tif/.npy files in it");
+    for (const fs::path& p : images) inputs.push_back(p.string());
+  }
+  for (const std::string& in : inputs) {
     const Described d = describe(analyzer, stream, device, in, a);
     if (d.faces.empty()) {
       ++without;
@@ -264,7 +276,7 @@ void run_embed(const EmbedArgs& a) {
     }
   }
   if (a.json) std::cout << all.dump(2) << "\n";
-  if (without == a.inputs.size()) {
+  if (without == inputs.size()) {
     throw Error("embed", "no face found in any input",
                 "lower --min-score or pass --aligned for face crops");
   }
@@ -386,9 +398,10 @@ void add_faces(CLI::App& app) {
   {
     auto a = std::make_shared<EmbedArgs>();
     CLI::App* cmd = app.add_subcommand("embed", "Compute a 128-d descriptor per detected face");
-    cmd->add_option("inputs", a->inputs, "Images (PNG, JPEG, TIFF, .npy float32 HWC RGB 0..255)")
+    cmd->add_option("inputs", a->inputs,
+                    "Images (PNG, JPEG, TIFF, .npy float32 HWC RGB 0..255) or folders of them")
         ->required()
-        ->check(CLI::ExistingFile);
+        ->check(CLI::ExistingPath);
     add_common(cmd, *a, true);
     cmd->footer(
         "Examples:\n  vkjr2 embed a.jpg b.png --json\n  vkjr2 embed chip150.npy --aligned\n"

@@ -83,6 +83,22 @@ TEST(CliFaces, EmbedAlignedChipAndRejectCorruptImages) {
   EXPECT_EQ(j[0]["faces"][0]["descriptor"].size(), 128u);
 
   TempDir tmp("corrupt");
+  // A folder stands for its images, in name order.
+  const fs::path folder = tmp.path / "chips";
+  fs::create_directories(folder);
+  fs::copy_file(chip150("sample1_f0"), folder / "b.npy");
+  fs::copy_file(chip150("sample1_f0"), folder / "a.npy");
+  const auto f = run_cli("embed " + folder.string() + " --aligned --json");
+  ASSERT_EQ(f.code, 0) << f.output;
+  const json fj = parse_json(f.output);
+  ASSERT_EQ(fj.size(), 2u) << f.output;
+  EXPECT_EQ(fj[0]["input"], (folder / "a.npy").string());
+  EXPECT_EQ(fj[1]["faces"][0]["descriptor"], j[0]["faces"][0]["descriptor"]);
+  fs::create_directories(tmp.path / "empty");
+  const auto empty = run_cli("embed " + (tmp.path / "empty").string());
+  EXPECT_EQ(empty.code, 1) << empty.output;
+  EXPECT_NE(empty.output.find("holds no image"), std::string::npos) << empty.output;
+
   const fs::path bad = tmp.path / "broken.jpg";
   std::ofstream(bad) << "\xff\xd8\xff\xe0 this is not really a JPEG";
   const auto e = run_cli("embed " + bad.string());
