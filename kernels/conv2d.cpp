@@ -229,13 +229,18 @@ Tensor pack_weights(Stream& stream, const Tensor& weight, const ConvPush& c, boo
 Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
   const std::uint64_t n = std::uint64_t(c.n) * c.cin * c.hp * c.wp;
   Tensor xp = Tensor::empty(stream.device(), Shape{std::int64_t(n)});
-  stream.dispatch(kPad, {texel(x), out(xp)}, c, groups_1d(div_up(n, 1024), stream.device().info()));
+  const std::uint32_t planes = c.n * c.cin;
+  const Groups g{div_up(c.wp / 4, 16u), div_up(c.hp, 4u),
+                 std::min(planes, stream.device().info().max_workgroup_count[2])};
+  stream.dispatch(kPad, {texel(x), out(xp)}, c, g);
   return xp;
 }
 
 // The forward dispatch of one variant; c has everything but the padded geometry.
+// prepacked: the weight already packed (conv2d_pack_weight), else packed here.
 void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
-                 const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight) {
+                 const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight,
+                 const Tensor* prepacked = nullptr) {
   const DeviceInfo& info = stream.device().info();
   const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
   c.has_bias = bias != nullptr ? 1u : 0u;
@@ -248,7 +253,8 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::pointwise: {
-      const Tensor packed = pack_weights(stream, weight, c, transposed_weight);
+      const Tensor packed =
+          prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Groups g{div_up(std::uint64_t(div_up(std::uint64_t(c.h) * c.w, kPx)), kBlockedGroup),
                      div_up(c.cout, kCoBlock), c.n};
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
@@ -260,7 +266,8 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
     }
     case Conv2dAlgo::blocked: {
       set_padded(c);
-      const Tensor packed = pack_weights(stream, weight, c, transposed_weight);
+      const Tensor packed =
+          prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Tensor xp = pad_input(stream, x, c);
       const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup),
                      div_up(c.cout, kCoBlock), c.n};
@@ -328,8 +335,27 @@ Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& we
   return select(info, dims_of("conv2d_select", x, weight, p), p, "conv2d_select");
 }
 
+bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept {
+  return algo == Conv2dAlgo::blocked || algo == Conv2dAlgo::pointwise;
+}
+
+Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight) {
+  const char* op = "conv2d_pack_weight";
+  require_f32_rank(weight, 4, op, "weight");
+  const Shape& s = weight.shape();
+  if (weight.numel() == 0) {
+    throw InvalidArgument(op, "weight " + s.str() + " is empty", "pass a non-empty OIHW weight");
+  }
+  ConvPush c{};
+  c.cout = std::uint32_t(s[0]);
+  c.cin = std::uint32_t(s[1]);
+  c.kh = std::uint32_t(s[2]);
+  c.kw = std::uint32_t(s[3]);
+  return Conv2dPackedWeight{pack_weights(stream, weight, c, false), s};
+}
+
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p) {
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed) {
   const char* op = "conv2d";
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(weight, 4, op, "weight");
@@ -340,8 +366,17 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
     require_f32(*bias, op, "bias");
     require_shape(*bias, Shape{d.cout}, op, "bias");
   }
+  if (packed != nullptr && packed->defined() && !(packed->weight_shape == weight.shape())) {
+    throw InvalidArgument(op,
+                          "packed weight was packed from " + packed->weight_shape.str() +
+                              ", the weight is " + weight.shape().str(),
+                          "pack this weight with conv2d_pack_weight (again after it changed)");
+  }
   const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
-  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false);
+  const Tensor* prepacked =
+      packed != nullptr && packed->defined() && conv2d_uses_packed_weight(algo) ? &packed->packed
+                                                                                : nullptr;
+  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false, prepacked);
 }
 
 void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
