@@ -29,6 +29,7 @@ constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocke
 constexpr std::uint32_t kBlockedGroup = 64;
 constexpr int kMaxBlockedTaps = 7;  // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
 constexpr int kMaxBlockedStep = 4;  // stride_x, dilation_x ≤ 4
+constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
 
 const KernelDef kDirect{
     "conv2d_direct",
@@ -229,9 +230,13 @@ Tensor pack_weights(Stream& stream, const Tensor& weight, const ConvPush& c, boo
 Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
   const std::uint64_t n = std::uint64_t(c.n) * c.cin * c.hp * c.wp;
   Tensor xp = Tensor::empty(stream.device(), Shape{std::int64_t(n)});
+  // Each workgroup loops over planes: llvmpipe pays per workgroup, so a few
+  // dozen groups (enough for every CPU thread) beat one per plane.
   const std::uint32_t planes = c.n * c.cin;
-  const Groups g{div_up(c.wp / 4, 16u), div_up(c.hp, 4u),
-                 std::min(planes, stream.device().info().max_workgroup_count[2])};
+  const std::uint32_t gx = div_up(c.wp / 4, 16u), gy = div_up(c.hp, 4u);
+  const std::uint32_t gz = std::clamp<std::uint32_t>(
+      kPadGroups / (gx * gy), 1u, std::min(planes, stream.device().info().max_workgroup_count[2]));
+  const Groups g{gx, gy, gz};
   stream.dispatch(kPad, {texel(x), out(xp)}, c, g);
   return xp;
 }
