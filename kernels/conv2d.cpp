@@ -27,8 +27,8 @@ static_assert(sizeof(ConvPush) == 24 * 4 && sizeof(ConvPush) <= 128);
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
 constexpr std::uint32_t kBlockedGroup = 64;
-constexpr int kMaxBlockedTaps = 7;  // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
-constexpr int kMaxBlockedStep = 4;  // stride_x, dilation_x ≤ 4
+constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
+constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
 constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
 
 const KernelDef kDirect{
@@ -150,12 +150,17 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
 
 // Padded-input geometry for the blocked and depthwise kernels: every row read
 // by a block of kPx output pixels lies inside [hp, wp].
-void set_padded(ConvPush& c) {
-  c.wblocks = (c.wout + kPx - 1) / kPx;
+// px: output pixels per invocation (kPx; the blocked kernel also runs 4).
+void set_padded(ConvPush& c, std::uint32_t px = kPx) {
+  c.wblocks = (c.wout + px - 1) / px;
   c.hp = (c.hout - 1) * c.sy + (c.kh - 1) * c.dy + 1;
   // wp rounded up to 4: rows start 16-byte aligned, read as vec4 texels.
-  c.wp = div_up((c.wblocks * kPx - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
+  c.wp = div_up((c.wblocks * px - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
 }
+
+// The blocked kernel's pixels per invocation: 4 on images at most 4 wide
+// (half the work of an 8-pixel block there), else 8.
+std::uint32_t blocked_px(std::uint32_t wout) { return wout <= 4 ? 4u : kPx; }
 
 std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p) {
   ConvPush c = push_of(d, p);
@@ -270,16 +275,19 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::blocked: {
-      set_padded(c);
+      const std::uint32_t px = blocked_px(c.wout);
+      set_padded(c, px);
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Tensor xp = pad_input(stream, x, c);
-      const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup),
-                     div_up(c.cout, kCoBlock), c.n};
+      // (pixel block, channel block) pairs, flattened (the shader splits them).
+      const std::uint64_t blocks = std::uint64_t(c.hout) * c.wblocks * div_up(c.cout, kCoBlock);
+      Groups g = groups_1d(div_up(blocks, kBlockedGroup), info);
+      g.z = c.n;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx});
+                      c, g, {c.kh, c.kw, c.sx, c.dx, px});
       return;
     }
     case Conv2dAlgo::depthwise: {

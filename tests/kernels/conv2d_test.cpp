@@ -113,6 +113,15 @@ std::vector<Case> edge_cases() {
   c.p.pad = kernels::same_padding(12, 10, 3, 3, 2, 2);
   c.p.activation = Activation::leaky_relu;
   cases.push_back(c);
+  c.d = {1, 64, 4, 4, 72, 3, 3};  // the ResNet's 4×4 stage: 4-pixel blocks
+  c.p = {};
+  c.p.pad = kernels::same_padding(4, 4, 3, 3, 1, 1);
+  c.p.activation = Activation::relu;
+  cases.push_back(c);
+  c.d = {2, 24, 17, 17, 40, 3, 3};  // 17 wide: a partial last 8-pixel block
+  c.p.stride_y = c.p.stride_x = 2;
+  c.p.pad = {};
+  cases.push_back(c);
   c.d = {1, 32, 9, 9, 32, 3, 3};
   c.p = {};
   c.p.groups = 32;
