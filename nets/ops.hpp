@@ -49,6 +49,7 @@ Var log_softmax(Tape& t, const Var& x);  // over the last axis
 // once, and again only after the weight changed (another Var, or a new
 // Var::version(): optimizer steps, set_value, checkpoint loads). A layer holds
 // one per weight and passes it to conv2d(); it keeps the packed copy alive.
+// Not synchronized: run one forward at a time through a layer that holds one.
 class ConvWeightCache {
  public:
   // The packed form of `weight`, packing it on `stream` when stale.
