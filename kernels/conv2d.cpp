@@ -27,8 +27,9 @@ static_assert(sizeof(ConvPush) == 24 * 4 && sizeof(ConvPush) <= 128);
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
 constexpr std::uint32_t kBlockedGroup = 64;
-constexpr int kMaxBlockedTaps = 7;  // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
-constexpr int kMaxBlockedStep = 4;  // stride_x, dilation_x ≤ 4
+constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
+constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
+constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
 
 const KernelDef kDirect{
     "conv2d_direct",
@@ -149,12 +150,17 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
 
 // Padded-input geometry for the blocked and depthwise kernels: every row read
 // by a block of kPx output pixels lies inside [hp, wp].
-void set_padded(ConvPush& c) {
-  c.wblocks = (c.wout + kPx - 1) / kPx;
+// px: output pixels per invocation (kPx; the blocked kernel also runs 4).
+void set_padded(ConvPush& c, std::uint32_t px = kPx) {
+  c.wblocks = (c.wout + px - 1) / px;
   c.hp = (c.hout - 1) * c.sy + (c.kh - 1) * c.dy + 1;
   // wp rounded up to 4: rows start 16-byte aligned, read as vec4 texels.
-  c.wp = div_up((c.wblocks * kPx - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
+  c.wp = div_up((c.wblocks * px - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
 }
+
+// The blocked kernel's pixels per invocation: 4 on images at most 4 wide
+// (half the work of an 8-pixel block there), else 8.
+std::uint32_t blocked_px(std::uint32_t wout) { return wout <= 4 ? 4u : kPx; }
 
 std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p) {
   ConvPush c = push_of(d, p);
@@ -229,13 +235,22 @@ Tensor pack_weights(Stream& stream, const Tensor& weight, const ConvPush& c, boo
 Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
   const std::uint64_t n = std::uint64_t(c.n) * c.cin * c.hp * c.wp;
   Tensor xp = Tensor::empty(stream.device(), Shape{std::int64_t(n)});
-  stream.dispatch(kPad, {texel(x), out(xp)}, c, groups_1d(div_up(n, 1024), stream.device().info()));
+  // Each workgroup loops over planes: llvmpipe pays per workgroup, so a few
+  // dozen groups (enough for every CPU thread) beat one per plane.
+  const std::uint32_t planes = c.n * c.cin;
+  const std::uint32_t gx = div_up(c.wp / 4, 16u), gy = div_up(c.hp, 4u);
+  const std::uint32_t gz = std::clamp<std::uint32_t>(
+      kPadGroups / (gx * gy), 1u, std::min(planes, stream.device().info().max_workgroup_count[2]));
+  const Groups g{gx, gy, gz};
+  stream.dispatch(kPad, {texel(x), out(xp)}, c, g);
   return xp;
 }
 
 // The forward dispatch of one variant; c has everything but the padded geometry.
+// prepacked: the weight already packed (conv2d_pack_weight), else packed here.
 void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
-                 const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight) {
+                 const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight,
+                 const Tensor* prepacked = nullptr) {
   const DeviceInfo& info = stream.device().info();
   const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
   c.has_bias = bias != nullptr ? 1u : 0u;
@@ -248,7 +263,8 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::pointwise: {
-      const Tensor packed = pack_weights(stream, weight, c, transposed_weight);
+      const Tensor packed =
+          prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Groups g{div_up(std::uint64_t(div_up(std::uint64_t(c.h) * c.w, kPx)), kBlockedGroup),
                      div_up(c.cout, kCoBlock), c.n};
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
@@ -259,15 +275,19 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::blocked: {
-      set_padded(c);
-      const Tensor packed = pack_weights(stream, weight, c, transposed_weight);
+      const std::uint32_t px = blocked_px(c.wout);
+      set_padded(c, px);
+      const Tensor packed =
+          prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Tensor xp = pad_input(stream, x, c);
-      const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup),
-                     div_up(c.cout, kCoBlock), c.n};
+      // (pixel block, channel block) pairs, flattened (the shader splits them).
+      const std::uint64_t blocks = std::uint64_t(c.hout) * c.wblocks * div_up(c.cout, kCoBlock);
+      Groups g = groups_1d(div_up(blocks, kBlockedGroup), info);
+      g.z = c.n;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx});
+                      c, g, {c.kh, c.kw, c.sx, c.dx, px});
       return;
     }
     case Conv2dAlgo::depthwise: {
@@ -328,8 +348,27 @@ Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& we
   return select(info, dims_of("conv2d_select", x, weight, p), p, "conv2d_select");
 }
 
+bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept {
+  return algo == Conv2dAlgo::blocked || algo == Conv2dAlgo::pointwise;
+}
+
+Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight) {
+  const char* op = "conv2d_pack_weight";
+  require_f32_rank(weight, 4, op, "weight");
+  const Shape& s = weight.shape();
+  if (weight.numel() == 0) {
+    throw InvalidArgument(op, "weight " + s.str() + " is empty", "pass a non-empty OIHW weight");
+  }
+  ConvPush c{};
+  c.cout = std::uint32_t(s[0]);
+  c.cin = std::uint32_t(s[1]);
+  c.kh = std::uint32_t(s[2]);
+  c.kw = std::uint32_t(s[3]);
+  return Conv2dPackedWeight{pack_weights(stream, weight, c, false), s};
+}
+
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p) {
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed) {
   const char* op = "conv2d";
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(weight, 4, op, "weight");
@@ -340,8 +379,17 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
     require_f32(*bias, op, "bias");
     require_shape(*bias, Shape{d.cout}, op, "bias");
   }
+  if (packed != nullptr && packed->defined() && !(packed->weight_shape == weight.shape())) {
+    throw InvalidArgument(op,
+                          "packed weight was packed from " + packed->weight_shape.str() +
+                              ", the weight is " + weight.shape().str(),
+                          "pack this weight with conv2d_pack_weight (again after it changed)");
+  }
   const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
-  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false);
+  const Tensor* prepacked =
+      packed != nullptr && packed->defined() && conv2d_uses_packed_weight(algo) ? &packed->packed
+                                                                                : nullptr;
+  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false, prepacked);
 }
 
 void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,

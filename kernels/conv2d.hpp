@@ -5,7 +5,10 @@
 //   x      [N, Cin, H, W]                 (NCHW)
 //   weight [Cout, Cin/groups, KH, KW]     (OIHW, as PyTorch). TF.js/Keras HWIO
 //          weights must be repacked to OIHW by the caller once at load time.
-//          The fast variants repack OIHW internally (one small dispatch per call).
+//          The blocked and pointwise variants read weights repacked to
+//          [ceil(Cout/8)][Cin][KH][KW][8]: conv2d() packs them on every call
+//          unless it is given the packed form from conv2d_pack_weight()
+//          (pack once per weight, again after the weight changed).
 //   bias   [Cout] (optional: nullptr)
 //   y      [N, Cout, Hout, Wout], Hout = (H + pad_top + pad_bottom - ((KH-1)·dy + 1)) / sy + 1.
 //
@@ -24,8 +27,8 @@
 //   blocked    groups == 1, KH, KW <= 7, stride_x, dilation_x <= 4: 8 output
 //              channels × 8 output pixels per invocation; the input is
 //              zero-padded into a temporary (one cheap pass) and read as vec4
-//              texels, weights packed to [Cout/8][Cin][KH][KW][8] (one small
-//              pass per call) and read as vec4 texels; KH/KW/stride_x/
+//              texels, weights packed to [Cout/8][Cin][KH][KW][8] (per call,
+//              or once with conv2d_pack_weight) and read as vec4 texels; KH/KW/stride_x/
 //              dilation_x are specialization constants. 3×3 64→64 128² on
 //              lavapipe (shared 2-core machine): 10–17 GFLOP/s.
 //   pointwise  1×1, stride 1, no padding, groups == 1 (a matmul): 8 channels ×
@@ -85,9 +88,25 @@ Shape conv2d_output_shape(const Shape& x, const Shape& weight, const Conv2dParam
 Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& weight,
                          const Conv2dParams& p);
 
-// y = act(conv(x, weight) + bias). bias may be nullptr.
+// An OIHW weight in the layout the blocked and pointwise variants read
+// ([ceil(Cout/8)][Cin/groups][KH][KW][8], zero for the channels past Cout).
+// It is a copy: after the weight changes (an optimizer step, a load) pack it
+// again, or conv2d() computes with the old values.
+struct Conv2dPackedWeight {
+  Tensor packed;       // undefined: not packed
+  Shape weight_shape;  // the OIHW shape it was packed from
+  bool defined() const noexcept { return packed.defined(); }
+};
+// Records the packing of weight [Cout, Cin/groups, KH, KW] on `stream`.
+Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight);
+// Whether `algo` reads packed weights (blocked, pointwise).
+bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept;
+
+// y = act(conv(x, weight) + bias). bias may be nullptr. packed: weight packed
+// by conv2d_pack_weight (used when the selected variant reads packed weights;
+// its shape must be weight's), or nullptr to pack on this call.
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p);
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr);
 
 // dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
 // shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces

@@ -185,15 +185,24 @@ void avg_pool2d_backward(Stream& stream, const Tensor& dy, const Pool2d& p, bool
 void global_avg_pool(Stream& stream, const Tensor& x, const Tensor& y) {
   static const KernelDef k{
       "pool_global_avg", {BindingKind::texel, BindingKind::storage}, sizeof(GlobalPush)};
+  static const KernelDef k_small{
+      "pool_global_avg_small", {BindingKind::texel, BindingKind::storage}, sizeof(GlobalPush)};
+  // Planes up to this size: one invocation each (pool_global_avg_small).
+  constexpr std::uint32_t kSmallGlobalPlane = 64;
   const char* op = "global_avg_pool";
   require_f32_rank(x, 4, op, "x");
   require_f32(y, op, "y");
   const Shape& s = x.shape();
   require_shape(y, Shape{s[0], s[1], 1, 1}, op, "y");
-  require_subgroup_arithmetic(stream, op);
   const auto planes = static_cast<std::uint32_t>(s[0] * s[1]);
-  stream.dispatch(k, {texel(x), out(y)},
-                  GlobalPush{planes, static_cast<std::uint32_t>(s[2] * s[3])},
+  const auto hw = static_cast<std::uint32_t>(s[2] * s[3]);
+  if (hw <= kSmallGlobalPlane) {  // one invocation per plane
+    stream.dispatch(k_small, {texel(x), out(y)}, GlobalPush{planes, hw},
+                    groups_1d(div_up(planes, 64), stream.device().info()));
+    return;
+  }
+  require_subgroup_arithmetic(stream, op);
+  stream.dispatch(k, {texel(x), out(y)}, GlobalPush{planes, hw},
                   groups_1d(planes, stream.device().info()));
 }
 

@@ -37,6 +37,7 @@ void Var::set_value(Tensor value) const {
   }
   state_->value = std::move(value);
   state_->grad = Tensor();
+  ++state_->version;
 }
 
 void Var::set_requires_grad(bool on) const {

@@ -14,6 +14,7 @@
 
 #include <vkjr2/runtime/stream.hpp>
 
+#include <cstdint>
 #include <functional>
 #include <memory>
 #include <string>
@@ -26,6 +27,7 @@ struct VarState {
   Tensor value;
   Tensor grad;  // undefined until a gradient reaches this Var
   bool requires_grad = false;
+  std::uint64_t version = 0;  // counts writes to value (Var::mark_modified)
 };
 }  // namespace detail
 
@@ -50,6 +52,14 @@ class Var {
   // state restore. Gradients are dropped.
   void set_value(Tensor value) const;
   void set_requires_grad(bool on) const;
+  // Counts the writes to the value: set_value, optimizer steps and checkpoint
+  // loads call mark_modified(); code that writes a parameter's tensor in place
+  // by other means must call it too. Caches derived from a Var (packed conv
+  // weights, folded layers) compare versions to know when to rebuild.
+  std::uint64_t version() const noexcept { return state_ ? state_->version : 0; }
+  void mark_modified() const noexcept {
+    if (state_) ++state_->version;
+  }
 
   const std::shared_ptr<detail::VarState>& state() const noexcept { return state_; }
 

@@ -79,9 +79,13 @@ std::map<std::string, std::string> load_checkpoint(const std::filesystem::path& 
   };
   for (const auto& [name, v] : module.named_parameters()) {
     restore("model." + name, v.value());
+    v.mark_modified();
     v.zero_grad();
   }
-  for (const auto& [name, v] : module.named_buffers()) restore("model." + name, v.value());
+  for (const auto& [name, v] : module.named_buffers()) {
+    restore("model." + name, v.value());
+    v.mark_modified();
+  }
   if (optimizer != nullptr) {
     for (const auto& [name, t] : optimizer->state()) restore("optim." + name, t);
     const SafetensorsRecord* steps = file.find("optim.steps");

@@ -117,11 +117,15 @@ class FaceLandmark68Net::SeparableConv : public Module {
     const Var mid = conv2d(t, x, depthwise_, Var(), dw);
     k::Conv2dParams pw;
     pw.activation = act;
-    return conv2d(t, mid, pointwise_, bias_, pw);
+    return conv2d(t, mid, pointwise_, bias_, pw, &pointwise_packed_);
   }
+
+  // Packs the pointwise filter for the fast conv (again only if it changes).
+  void pack(Stream& s) const { pointwise_packed_.get(s, pointwise_); }
 
  private:
   Var depthwise_, pointwise_, bias_;
+  ConvWeightCache pointwise_packed_;
   int stride_, groups_ = 1;
 };
 
@@ -159,7 +163,7 @@ class FaceLandmark68Net::DenseBlock : public Module {
       p.stride_y = p.stride_x = 2;
       p.pad = same3(x, 2);
       p.activation = k::Activation::relu;
-      out1 = conv2d(t, x, first_filters_, first_bias_, p);
+      out1 = conv2d(t, x, first_filters_, first_bias_, p, &first_packed_);
     }
     // face-api sums out1 + (out2 + (out3 + out4)); the running sum below
     // associates left to right instead (differences at float rounding level).
@@ -171,8 +175,18 @@ class FaceLandmark68Net::DenseBlock : public Module {
     return relu(t, sum);
   }
 
+  void pack(Stream& s) const {
+    if (conv0_ != nullptr) {
+      conv0_->pack(s);
+    } else {
+      first_packed_.get(s, first_filters_);
+    }
+    for (const SeparableConv* c : convs_) c->pack(s);
+  }
+
  private:
   Var first_filters_, first_bias_;
+  ConvWeightCache first_packed_;
   const SeparableConv* conv0_ = nullptr;
   std::array<const SeparableConv*, 3> convs_{};
 };
@@ -201,6 +215,11 @@ FaceLandmark68Net::FaceLandmark68Net(const Device& device, const TfjsWeights& we
   for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
   input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
   input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+
+  // Conv weights packed once at load (repacked only if a weight changes).
+  Stream stream(device);
+  for (const DenseBlock* block : blocks_) block->pack(stream);
+  stream.run();
 }
 
 FaceLandmark68Net::~FaceLandmark68Net() = default;

@@ -1,3 +1,5 @@
+#include <vkjr2/kernels/elementwise.hpp>
+#include <vkjr2/kernels/layout.hpp>
 #include <vkjr2/nets/face_recognition.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
@@ -153,6 +155,10 @@ Tensor to_recognition_input(Stream& stream, const Tensor& chip) {
 // ---- the network -------------------------------------------------------------------
 
 // conv + bias, then the scale layer x·w + b, then optionally ReLU (convLayer.ts).
+// Where no parameter needs a gradient (inference, a frozen embedder) the scale
+// layer is folded into the conv — w'[co] = w[co]·s[co], b' = b·s + t — with
+// the ReLU fused, and w' packed once: one dispatch instead of three. The folded
+// weights are rebuilt when a parameter's version changes (an optimizer step).
 class FaceRecognitionNet::ConvLayer : public Module {
  public:
   ConvLayer(const Device& device, WeightReader& r, const std::string& prefix, int kernel,
@@ -181,13 +187,42 @@ class FaceRecognitionNet::ConvLayer : public Module {
     } else {  // conv / convNoRelu: stride 1, 'same'
       p.pad = k::same_padding(x.shape()[2], x.shape()[3], kernel_, kernel_, 1, 1);
     }
+    if (!t.needs_grad({&filters_, &bias_, &scale_, &shift_})) {
+      fold(t.stream());
+      p.activation = with_relu ? k::Activation::relu : k::Activation::none;
+      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_);
+    }
     Var y = conv2d(t, x, filters_, bias_, p);
     y = channel_affine(t, y, scale_, shift_);
     return with_relu ? relu(t, y) : y;
   }
 
+  // Records the folding and packing on `stream` unless the folded weights are
+  // up to date.
+  void fold(Stream& stream) const {
+    const std::array<std::uint64_t, 4> versions = {filters_.version(), bias_.version(),
+                                                   scale_.version(), shift_.version()};
+    if (folded_filters_.defined() && versions == folded_versions_) return;
+    const Tensor& w = filters_.value();
+    const Shape& ws = w.shape();
+    const Shape rows{1, ws[0], ws[1] * ws[2], ws[3]};  // one channel per output channel
+    Tensor fw = Tensor::empty(stream.device(), ws);
+    k::mul_channel(stream, w.reshape(rows), scale_.value(), fw.reshape(rows));
+    const Shape column{1, ws[0], 1, 1};
+    Tensor fb = Tensor::empty(stream.device(), Shape{ws[0]});
+    k::channel_affine(stream, bias_.value().reshape(column), scale_.value(), shift_.value(),
+                      fb.reshape(column));
+    folded_filters_ = Var(fw);
+    folded_bias_ = Var(fb);
+    folded_packed_.get(stream, folded_filters_);
+    folded_versions_ = versions;
+  }
+
  private:
   Var filters_, bias_, scale_, shift_;
+  mutable Var folded_filters_, folded_bias_;
+  mutable std::array<std::uint64_t, 4> folded_versions_{};
+  ConvWeightCache folded_packed_;
   int kernel_ = 3;
   bool down_;
 };
@@ -229,6 +264,11 @@ class FaceRecognitionNet::Residual : public Module {
                   "the input must be 150×150 (use to_recognition_input)");
     }
     return relu(t, add(t, pooled, out));
+  }
+
+  void fold(Stream& stream) const {
+    conv1_->fold(stream);
+    conv2_->fold(stream);
   }
 
  private:
@@ -280,6 +320,13 @@ FaceRecognitionNet::FaceRecognitionNet(const Device& device, const TfjsWeights& 
   for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
   input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
   input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+
+  // The scale layers folded into the convs and their weights packed, once at
+  // load (again only after a parameter changed).
+  Stream stream(device);
+  conv32_down_->fold(stream);
+  for (const Residual* block : blocks_) block->fold(stream);
+  stream.run();
 }
 
 FaceRecognitionNet::~FaceRecognitionNet() = default;

@@ -239,11 +239,29 @@ Var log_softmax(Tape& t, const Var& x) {
 
 // ---- layers' compute --------------------------------------------------------------
 
+const k::Conv2dPackedWeight& ConvWeightCache::get(Stream& stream, const Var& weight) const {
+  const std::shared_ptr<const detail::VarState> current = weight.state();
+  if (!current) {
+    throw InvalidArgument("ConvWeightCache::get", "the weight is undefined", "pass a conv weight");
+  }
+  if (!packed_.defined() || source_.lock() != current || version_ != weight.version()) {
+    packed_ = k::conv2d_pack_weight(stream, weight.value());
+    source_ = current;
+    version_ = weight.version();
+  }
+  return packed_;
+}
+
 Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
-           const kernels::Conv2dParams& p) {
+           const kernels::Conv2dParams& p, const ConvWeightCache* cache) {
   Tensor y = empty(x, k::conv2d_output_shape(x.shape(), weight.shape(), p));
   const Tensor* b = bias.defined() ? &bias.value() : nullptr;
-  k::conv2d(t.stream(), x.value(), weight.value(), b, y, p);
+  const k::Conv2dPackedWeight* packed = nullptr;
+  if (cache != nullptr && k::conv2d_uses_packed_weight(k::conv2d_select(
+                              t.device().info(), x.value().shape(), weight.shape(), p))) {
+    packed = &cache->get(t.stream(), weight);
+  }
+  k::conv2d(t.stream(), x.value(), weight.value(), b, y, p, packed);
   return finish(t, y, {&x, &weight, &bias}, [x, weight, bias, y, p](Tape& tape, const Tensor& dy) {
     Stream& s = tape.stream();
     // The backward kernels take the pre-activation gradient; ReLU/LeakyReLU

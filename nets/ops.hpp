@@ -11,6 +11,8 @@
 #include <vkjr2/kernels/resize.hpp>
 #include <vkjr2/nets/autograd.hpp>
 
+#include <cstdint>
+#include <memory>
 #include <span>
 #include <vector>
 
@@ -43,9 +45,26 @@ Var softmax(Tape& t, const Var& x);      // over the last axis
 Var log_softmax(Tape& t, const Var& x);  // over the last axis
 
 // ---- layers' compute ------------------------------------------------------------
-// act(conv(x, weight) + bias); weight OIHW; bias may be undefined.
+// A conv weight packed for the fast conv variants (kernels::conv2d_pack_weight)
+// once, and again only after the weight changed (another Var, or a new
+// Var::version(): optimizer steps, set_value, checkpoint loads). A layer holds
+// one per weight and passes it to conv2d(); it keeps the packed copy alive.
+// Not synchronized: run one forward at a time through a layer that holds one.
+class ConvWeightCache {
+ public:
+  // The packed form of `weight`, packing it on `stream` when stale.
+  const kernels::Conv2dPackedWeight& get(Stream& stream, const Var& weight) const;
+
+ private:
+  mutable std::weak_ptr<const detail::VarState> source_;
+  mutable std::uint64_t version_ = 0;
+  mutable kernels::Conv2dPackedWeight packed_;
+};
+
+// act(conv(x, weight) + bias); weight OIHW; bias may be undefined. cache:
+// where weight's packed form is kept between calls (nullptr: packed per call).
 Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
-           const kernels::Conv2dParams& p);
+           const kernels::Conv2dParams& p, const ConvWeightCache* cache = nullptr);
 // x [M, K] · weight [K, N] (+ bias [N] when defined).
 Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias);
 Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p);

@@ -52,7 +52,10 @@ void Sgd::step(Stream& stream) {
   ++steps_;
   for (std::size_t i = 0; i < params_.size(); ++i) {
     const Var& p = params_[i].second;
-    if (p.has_grad()) kernels::sgd_step(stream, p.value(), p.grad(), velocity_[i], options_);
+    if (p.has_grad()) {
+      kernels::sgd_step(stream, p.value(), p.grad(), velocity_[i], options_);
+      p.mark_modified();
+    }
   }
 }
 
@@ -76,6 +79,7 @@ void Adam::step(Stream& stream) {
     const Var& p = params_[i].second;
     if (p.has_grad()) {
       kernels::adam_step(stream, p.value(), p.grad(), m_[i], v_[i], steps_, options_);
+      p.mark_modified();
     }
   }
 }

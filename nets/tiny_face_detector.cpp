@@ -166,11 +166,15 @@ class TinyFaceDetector::SeparableConv : public Module {
     k::Conv2dParams pw;
     pw.activation = k::Activation::leaky_relu;
     pw.leaky_slope = kLeakySlope;
-    return conv2d(t, mid, pointwise_, bias_, pw);
+    return conv2d(t, mid, pointwise_, bias_, pw, &pointwise_packed_);
   }
+
+  // Packs the pointwise filter for the fast conv (again only if it changes).
+  void pack(Stream& s) const { pointwise_packed_.get(s, pointwise_); }
 
  private:
   Var depthwise_, pointwise_, bias_;
+  ConvWeightCache pointwise_packed_;
   int groups_;
 };
 
@@ -200,6 +204,13 @@ TinyFaceDetector::TinyFaceDetector(const Device& device, const TfjsWeights& weig
   for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
   input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
   input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+
+  // Conv weights packed once at load (repacked only if a weight changes).
+  Stream stream(device);
+  conv0_packed_.get(stream, conv0_filters_);
+  for (const SeparableConv* c : convs_) c->pack(stream);
+  conv8_packed_.get(stream, conv8_filters_);
+  stream.run();
 }
 
 TinyFaceDetector::~TinyFaceDetector() = default;
@@ -219,13 +230,13 @@ Var TinyFaceDetector::forward(Tape& t, const Var& x) const {
   k::Conv2dParams p0;
   p0.activation = k::Activation::leaky_relu;
   p0.leaky_slope = kLeakySlope;
-  y = conv2d(t, y, conv0_filters_, conv0_bias_, p0);
+  y = conv2d(t, y, conv0_filters_, conv0_bias_, p0, &conv0_packed_);
   for (std::size_t i = 0; i < convs_.size(); ++i) {
     y = max_pool2d(t, y, k::pool_same(2, 2, 2, 2, y.shape()[2], y.shape()[3]));
     y = convs_[i]->forward(t, y);
   }
   y = max_pool2d(t, y, k::pool_same(2, 2, 1, 1, y.shape()[2], y.shape()[3]));
-  return conv2d(t, y, conv8_filters_, conv8_bias_, k::Conv2dParams{});
+  return conv2d(t, y, conv8_filters_, conv8_bias_, k::Conv2dParams{}, &conv8_packed_);
 }
 
 Tensor TinyFaceDetector::preprocess(Stream& stream, const Tensor& image, int input_size) const {

@@ -114,6 +114,7 @@ class TinyFaceDetector : public Module {
   Var conv0_filters_, conv0_bias_;
   std::vector<const SeparableConv*> convs_;  // conv1 … conv5
   Var conv8_filters_, conv8_bias_;
+  ConvWeightCache conv0_packed_, conv8_packed_;
   Var input_scale_, input_shift_;  // 1/255 and −mean/255 per channel
 };
 

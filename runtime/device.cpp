@@ -556,6 +556,11 @@ void DeviceCore::add_kernel_time(std::string_view kernel, double ns) {
   it->second.total_ns += ns;
 }
 
+void DeviceCore::reset_profile() {
+  std::lock_guard lock(profile_mutex_);
+  kernel_times_.clear();
+}
+
 std::string DeviceCore::profile_report() const {
   std::lock_guard lock(profile_mutex_);
   if (kernel_times_.empty()) return {};
@@ -685,6 +690,7 @@ bool Device::push_descriptors_enabled() const { return core_->push_descriptors; 
 bool Device::staging() const { return core_->staging; }
 MemoryStats Device::memory_stats() const { return core_->allocator->stats(); }
 std::string Device::profile_report() const { return core_->profile_report(); }
+void Device::reset_profile() const { core_->reset_profile(); }
 
 std::vector<std::string> Device::validation_messages() const {
   return core_->validation_messages();

@@ -127,6 +127,8 @@ class Device {
   MemoryStats memory_stats() const;
   // Per-kernel GPU times gathered so far (VKJR2_PROFILE=1), as a table.
   std::string profile_report() const;
+  // Forgets the times gathered so far (e.g. model loading and warm-up runs).
+  void reset_profile() const;
   void wait_idle() const;
 
   detail::DeviceCore& core() const { return *core_; }

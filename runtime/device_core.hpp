@@ -48,6 +48,7 @@ class DeviceCore {
   std::vector<std::string> validation_messages() const;
   void add_kernel_time(std::string_view kernel, double ns);
   std::string profile_report() const;
+  void reset_profile();
 
   VkInstance instance = VK_NULL_HANDLE;
   VkPhysicalDevice physical_device = VK_NULL_HANDLE;

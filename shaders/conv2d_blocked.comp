@@ -1,6 +1,9 @@
 #version 450
-// conv2d forward, groups == 1: each invocation computes 8 output channels × 8
-// consecutive output pixels of one row (16 vec4 accumulators). The input is
+// conv2d forward, groups == 1: each invocation computes 8 output channels × PX
+// (8, or 4 on images at most 4 wide) consecutive output pixels of one row
+// (2·PX vec4 accumulators). Invocations run over (pixel block, channel block)
+// flattened, so small images with many channels still fill whole workgroups
+// (llvmpipe runs 8 lanes at a time and pays per workgroup). The input is
 // the zero-padded copy from conv2d_pad (no bounds checks in the loop); one row
 // segment is loaded once per (channel, ky) as vec4 texels and reused across
 // kx. Weights are packed by conv2d_pack: 8 channels per tap as two vec4
@@ -15,7 +18,7 @@ layout(constant_id = 0) const uint KH = 3u;
 layout(constant_id = 1) const uint KW = 3u;
 layout(constant_id = 2) const uint SX = 1u;
 layout(constant_id = 3) const uint DX = 1u;
-const uint PX = 8u;
+layout(constant_id = 4) const uint PX = 8u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;  // input columns one row needs
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
 
@@ -25,9 +28,11 @@ layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
 
 void main() {
-  const uint pb = gl_GlobalInvocationID.x;
-  if (pb >= pc.hout * pc.wblocks) return;
-  const uint cob = gl_WorkGroupID.y;
+  const uint npb = pc.hout * pc.wblocks;
+  const uint idx = linear_group() * 64u + gl_LocalInvocationID.x;
+  const uint cob = idx / npb;
+  if (cob >= (pc.cout + 7u) / 8u) return;
+  const uint pb = idx - cob * npb;
   const uint n = gl_WorkGroupID.z;
   const uint oy = pb / pc.wblocks;
   const uint ox0 = (pb % pc.wblocks) * PX;

@@ -113,6 +113,15 @@ std::vector<Case> edge_cases() {
   c.p.pad = kernels::same_padding(12, 10, 3, 3, 2, 2);
   c.p.activation = Activation::leaky_relu;
   cases.push_back(c);
+  c.d = {1, 64, 4, 4, 72, 3, 3};  // the ResNet's 4×4 stage: 4-pixel blocks
+  c.p = {};
+  c.p.pad = kernels::same_padding(4, 4, 3, 3, 1, 1);
+  c.p.activation = Activation::relu;
+  cases.push_back(c);
+  c.d = {2, 24, 17, 17, 40, 3, 3};  // 17 wide: a partial last 8-pixel block
+  c.p.stride_y = c.p.stride_x = 2;
+  c.p.pad = {};
+  cases.push_back(c);
   c.d = {1, 32, 9, 9, 32, 3, 3};
   c.p = {};
   c.p.groups = 32;
@@ -165,13 +174,19 @@ void check_forward(const Case& c, std::uint32_t seed) {
     p.algo = a;
     Tensor y = Tensor::empty(dev, y_shape(c));
     Tensor y2 = Tensor::empty(dev, y_shape(c));
+    Tensor y3 = Tensor::empty(dev, y_shape(c));
     Stream s(dev);
     kernels::conv2d(s, x, w, &b, y, p);
     kernels::conv2d(s, x, w, nullptr, y2, p);
+    // Weights packed once, ahead of the call (what models do at load).
+    const kernels::Conv2dPackedWeight packed = kernels::conv2d_pack_weight(s, w);
+    kernels::conv2d(s, x, w, &b, y3, p, &packed);
     s.run();
     expect_close(y.download(), want, std::string("forward ") + kernels::conv2d_algo_name(a));
     expect_close(y2.download(), want_nobias,
                  std::string("forward without bias ") + kernels::conv2d_algo_name(a));
+    expect_close(y3.download(), want,
+                 std::string("forward, packed weight ") + kernels::conv2d_algo_name(a));
   }
 }
 
@@ -336,6 +351,11 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   expect_message([&] { kernels::conv2d(s, x, w, nullptr, y_bad, p); }, "expected");
   Tensor b_bad = Tensor::empty(dev, {7});
   expect_message([&] { kernels::conv2d(s, x, w, &b_bad, y, p); }, "bias");
+  Tensor w_other = Tensor::empty(dev, {8, 4, 1, 1});
+  const kernels::Conv2dPackedWeight packed_other = kernels::conv2d_pack_weight(s, w_other);
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, &packed_other); }, "packed");
+  Tensor w_3d = Tensor::empty(dev, {8, 4, 9});
+  expect_message([&] { kernels::conv2d_pack_weight(s, w_3d); }, "weight");
   Tensor empty = Tensor::empty(dev, {0, 4, 8, 8});
   expect_message([&] { kernels::conv2d(s, empty, w, nullptr, y, p); }, "empty");
   Conv2dParams g3 = p;

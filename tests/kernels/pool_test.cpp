@@ -165,7 +165,9 @@ TEST(PoolKernels, AvgPoolPaddingConventions) {
 TEST(PoolKernels, GlobalAvgPoolMatchesReference) {
   Device& dev = test::device();
   const std::uint32_t seed = 503;
-  const std::vector<Shape> shapes = {{1, 1, 1, 1}, {2, 3, 7, 5}, {1, 4, 33, 31}, {3, 2, 64, 65}};
+  // Planes ≤ 64 values run one invocation each, larger ones a workgroup each.
+  const std::vector<Shape> shapes = {{1, 1, 1, 1},  {2, 3, 7, 5},   {1, 256, 2, 2}, {1, 70, 8, 8},
+                                     {1, 5, 5, 13}, {1, 4, 33, 31}, {3, 2, 64, 65}};
   for (const Shape& xs : shapes) {
     SCOPED_TRACE("x " + xs.str() + " seed=" + std::to_string(seed));
     const auto xv = test::random_floats(std::size_t(xs.numel()), seed);

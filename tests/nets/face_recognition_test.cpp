@@ -352,6 +352,53 @@ TEST(FaceRecognitionNet, PixelGradientMatchesFiniteDifferences) {
   }
 }
 
+// Inference folds each scale layer (and ReLU) into its conv; a recording tape
+// with trainable parameters runs conv, scale and ReLU separately. Both must
+// agree, also after a parameter changes (the folded weights are rebuilt).
+TEST(FaceRecognitionNet, FoldedInferenceMatchesUnfoldedAndFollowsParameterChanges) {
+  REQUIRE_REFERENCES();
+  const Tensor x =
+      image_to_device(test::device(), read_npy(test::parity_dir() / faces[0].input150_npy));
+  FaceRecognitionNet& n = net();
+  const auto unfolded = [&] {
+    Stream stream(test::device());
+    Tape tape(stream);  // parameters need gradients: nothing is folded
+    const Var d = n.forward(tape, Var(x));
+    stream.run();
+    return d.value().download();
+  };
+  const auto expect_near_all = [](const std::vector<float>& a, const std::vector<float>& b,
+                                  const char* what) {
+    ASSERT_EQ(a.size(), b.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+      worst = std::max(worst, std::fabs(double(a[i]) - b[i]));
+    // fp32 reassociation only (w·s summed instead of Σw then ·s): ~1e-6.
+    EXPECT_LT(worst, 1e-5) << what;
+  };
+  const std::vector<float> folded = descriptors(x);
+  expect_near_all(folded, unfolded(), "before the change");
+
+  Var scale;
+  for (const auto& [name, v] : n.named_parameters()) {
+    if (name == "conv64_1.conv1.scale.weights") scale = v;
+  }
+  ASSERT_TRUE(scale.defined());
+  const Tensor original = scale.value();
+  std::vector<float> scaled = original.download();
+  for (float& v : scaled) v *= 1.5f;
+  scale.set_value(Tensor::from(test::device(), original.shape(), scaled));
+  const std::vector<float> changed = descriptors(x);
+  expect_near_all(changed, unfolded(), "after the change");
+  double moved = 0;
+  for (std::size_t i = 0; i < folded.size(); ++i)
+    moved += std::fabs(double(changed[i]) - folded[i]);
+  EXPECT_GT(moved, 1e-2) << "the changed scale did not reach the folded conv";
+
+  scale.set_value(original);
+  expect_near_all(descriptors(x), folded, "after restoring");
+}
+
 TEST(FaceRecognitionNet, SameFacePerturbedIsCloserThanOtherFaces) {
   REQUIRE_REFERENCES();
   constexpr std::size_t kFaces = 3;

@@ -80,6 +80,51 @@ TEST(NetsLayers, SameSeedSameWeightsAndBadSizesRejected) {
   EXPECT_THROW(Linear(d, 0, 4, true, 1), InvalidArgument);
 }
 
+// The layer packs its weight once and reuses it; after an optimizer step (or
+// set_value) the next forward must see the new weight, exactly as a conv that
+// packs on every call.
+TEST(NetsLayers, Conv2dPackedWeightFollowsOptimizerSteps) {
+  const Device& d = test::device();
+  kernels::Conv2dParams p;
+  p.pad = kernels::same_padding(9, 11, 3, 3, 1, 1);
+  p.activation = kernels::Activation::relu;
+  Conv2d conv(d, 16, 8, 3, 3, p, true, 7);
+  ASSERT_EQ(kernels::conv2d_select(d.info(), Shape{1, 16, 9, 11}, conv.weight.shape(), p),
+            kernels::Conv2dAlgo::blocked);
+  Stream st(d);
+  const Var x(Tensor::from(d, Shape{1, 16, 9, 11}, uniform_init(16 * 9 * 11, 1.f, 3)));
+  const auto unpacked = [&] {  // packs on this call
+    Tape t(st, false);
+    const Var y = conv2d(t, x, conv.weight, conv.bias, p);
+    st.run();
+    return y.value().download();
+  };
+  const auto run_layer = [&] {
+    Tape t(st, false);
+    const Var y = conv.forward(t, x);
+    st.run();
+    return y.value().download();
+  };
+  std::vector<float> previous = run_layer();
+  EXPECT_EQ(previous, unpacked());
+  Sgd sgd(conv.named_parameters(), {0.5f});
+  for (int step = 0; step < 2; ++step) {
+    Tape t(st);
+    t.backward(sum_all(t, conv.forward(t, x)));
+    const std::uint64_t before = conv.weight.version();
+    sgd.step(st);
+    st.run();
+    EXPECT_GT(conv.weight.version(), before);
+    const auto after = run_layer();
+    EXPECT_EQ(after, unpacked()) << "step " << step;
+    EXPECT_NE(after, previous) << "step " << step << " did not change the output";
+    previous = after;
+  }
+  conv.weight.set_value(Tensor::from(d, conv.weight.shape(),
+                                     uniform_init(std::size_t(conv.weight.numel()), 0.1f, 9)));
+  EXPECT_EQ(run_layer(), unpacked());
+}
+
 TEST(NetsOptimizer, WarmupCosineSchedule) {
   const WarmupCosine s{1.f, 0.1f, 4, 14};
   EXPECT_FLOAT_EQ(s.at(0), 0.25f);
