@@ -9,6 +9,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <string>
 
 #include "support/cli_files.hpp"
@@ -118,6 +119,21 @@ TEST(CliFaces, VerifySameAndDifferentFaces) {
                             chip150("sample1_f1").string() + " --aligned --json");
   ASSERT_EQ(diff.code, 0) << diff.output;
   EXPECT_GT(parse_json(diff.output)["distance"].get<double>(), 0.3) << diff.output;
+  // Bad inputs: a missing file (command line) and a truncated array (runtime).
+  TempDir tmp("verify_bad");
+  const auto missing =
+      run_cli("verify " + chip150("sample1_f0").string() + " " + (tmp.path / "x.npy").string());
+  EXPECT_EQ(missing.code, 2) << missing.output;
+  const fs::path cut = tmp.path / "cut.npy";
+  {
+    std::ifstream src(chip150("sample1_f0"), std::ios::binary);
+    std::string bytes((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+    std::ofstream(cut, std::ios::binary) << bytes.substr(0, bytes.size() / 2);
+  }
+  const auto truncated =
+      run_cli("verify " + chip150("sample1_f0").string() + " " + cut.string() + " --aligned");
+  EXPECT_EQ(truncated.code, 1) << truncated.output;
+  EXPECT_NE(truncated.output.find(cut.string()), std::string::npos) << truncated.output;
 }
 
 TEST(CliFaces, IdentifyRanksTheProbeIdentityFirst) {
