@@ -93,14 +93,11 @@ void dump_fields(const sim::Simulator& sim, const fs::path& dir, bool force) {
   nets::write_file_atomic(dir / "fields.json", std::as_bytes(std::span(text)), "--dump-fields");
 }
 
-struct Result {
-  json summary;
-  std::string text;
-};
-
 // One input file → one output file, on a Simulator made for its frame size.
-Result simulate_one(const Device& device, const std::shared_ptr<const sim::BlurModel>& blur,
-                    const SimArgs& a, const fs::path& in, const fs::path& out, std::uint64_t seed) {
+// Returns the JSON summary; `text` gets the human-readable one.
+json simulate_one(const Device& device, const std::shared_ptr<const sim::BlurModel>& blur,
+                  const SimArgs& a, const fs::path& in, const fs::path& out, std::uint64_t seed,
+                  std::string& text) {
   const std::string in_name = in.string(), out_name = out.string();
   if (!fs::exists(in)) throw Error("simulate", in_name + " does not exist", "check the path");
   const bool video_in = is_video_path(in);
@@ -183,37 +180,36 @@ Result simulate_one(const Device& device, const std::shared_ptr<const sim::BlurM
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const sim::ChannelDerived& c0 = sim->derived().channels[0];
   const auto& im = sim->params().image;
-  Result r;
-  r.summary = {{"input", in_name},
-               {"output", out_name},
-               {"frames", done},
-               {"height", im.height},
-               {"width", im.width},
-               {"channels", im.channels},
-               {"seconds", seconds},
-               {"fps", double(done) / seconds},
-               {"seed", seed},
-               {"blur", so.blur},
-               {"tilt", so.tilt},
-               {"r0_m", c0.r0_m},
-               {"d_over_r0", c0.d_over_r0},
-               {"isoplanatic_angle_px", c0.isoplanatic_angle_px},
-               {"tilt_std_px", c0.tilt_std_px},
-               {"rytov", c0.rytov},
-               {"grid", {sim->field().grid_h(), sim->field().grid_w()}},
-               {"warnings", sim->derived().warnings}};
+  json summary = {{"input", in_name},
+                  {"output", out_name},
+                  {"frames", done},
+                  {"height", im.height},
+                  {"width", im.width},
+                  {"channels", im.channels},
+                  {"seconds", seconds},
+                  {"fps", double(done) / seconds},
+                  {"seed", seed},
+                  {"blur", so.blur},
+                  {"tilt", so.tilt},
+                  {"r0_m", c0.r0_m},
+                  {"d_over_r0", c0.d_over_r0},
+                  {"isoplanatic_angle_px", c0.isoplanatic_angle_px},
+                  {"tilt_std_px", c0.tilt_std_px},
+                  {"rytov", c0.rytov},
+                  {"grid", {sim->field().grid_h(), sim->field().grid_w()}},
+                  {"warnings", sim->derived().warnings}};
   char line[512];
   std::snprintf(line, sizeof line,
                 "simulate: %s -> %s: %zu frame(s) %lldx%lldx%d in %.2f s (%.2f frames/s)\n",
                 in_name.c_str(), out_name.c_str(), done, static_cast<long long>(im.width),
                 static_cast<long long>(im.height), im.channels, seconds, double(done) / seconds);
-  r.text = line;
-  r.text += "  " + sim::summary(sim->params(), sim->derived()) + "\n";
+  text = line;
+  text += "  " + sim::summary(sim->params(), sim->derived()) + "\n";
   std::snprintf(line, sizeof line, "  field grid %dx%d (step %.2f px), tilt %s, blur %s\n",
                 sim->field().grid_w(), sim->field().grid_h(), sim->field().step_x_px(),
                 so.tilt ? "on" : "off", so.blur ? "on" : "off");
-  r.text += line;
-  return r;
+  text += line;
+  return summary;
 }
 
 // The image and video files directly in `dir`, sorted by name.
@@ -273,11 +269,12 @@ void run_simulate(const SimArgs& a) {
   json all = json::array();
   for (std::size_t i = 0; i < jobs.size(); ++i) {
     // Each file of a folder gets its own turbulence: seed + its position.
-    const Result r = simulate_one(device, blur, a, jobs[i].first, jobs[i].second, a.seed + i);
+    std::string text;
+    json summary = simulate_one(device, blur, a, jobs[i].first, jobs[i].second, a.seed + i, text);
     if (a.json_out) {
-      all.push_back(r.summary);
+      all.push_back(std::move(summary));
     } else {
-      std::fputs(r.text.c_str(), stdout);
+      std::fputs(text.c_str(), stdout);
     }
   }
   if (a.json_out) {

@@ -281,7 +281,8 @@ void psf_checks(const Device& device, const Params& base, const ValidationConfig
   // [long/short][separation] per frame, and the wave tilts per axis.
   std::array<std::array<std::vector<double>, 2>, 2> otf_fast, otf_wave;
   std::vector<double> wave_tilt2;
-  const double cf = kFrame / 2;
+  constexpr int kCentre = kFrame / 2;
+  const double cf = kCentre;
   for (int t = 0; t < c.psf_frames; ++t) {
     // The fast simulator as rendered (EE50).
     sim.reset(c.seed + 100 + std::uint64_t(t));
@@ -305,7 +306,8 @@ void psf_checks(const Device& device, const Params& base, const ValidationConfig
     w.seed = c.seed + 1000 + std::uint64_t(t);
     const std::array<double, 2> on_axis{0.0, 0.0};
     const auto psf = wave_psfs(device, p, 0, w, std::span(&on_axis, 1), nf);
-    const double cw = nf / 2;
+    const int half = nf / 2;
+    const double cw = half;
     for (int yy = 0; yy < kSize; ++yy)
       for (int xx = 0; xx < kSize; ++xx)
         wave[std::size_t(yy) * kSize + xx] +=

@@ -268,10 +268,10 @@ TEST(PsfBasis, ResidualModesBlurTheMeanPsf) {
     const PsfBasis b = make_psf_basis(test::device(), q, 36, c);
     const double nu = u / (2 * q);
     double re = 0;
+    const int centre = b.size / 2;
     for (int r = 0; r < b.size; ++r)
       for (int x = 0; x < b.size; ++x)
-        re +=
-            b.kernels[sz(r * b.size + x)] * std::cos(2 * std::numbers::pi * nu * (x - b.size / 2));
+        re += b.kernels[sz(r * b.size + x)] * std::cos(2 * std::numbers::pi * nu * (x - centre));
     return re / (2 / std::numbers::pi * (std::acos(u) - u * std::sqrt(1 - u * u)));
   };
   const double fried = std::exp(-3.44 * std::pow(u * dr, 5.0 / 3.0) * (1 - std::cbrt(u)));
