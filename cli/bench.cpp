@@ -13,8 +13,10 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <memory>
 #include <string>
 #include <vector>
@@ -47,7 +49,7 @@ std::vector<float> test_scene(int channels, int h, int w) {
 
 void run_bench_sim(const BenchSimArgs& a) {
   const Device device = open_device(a.device);
-  const auto blur = sim::load_default_blur_model(device);
+  const auto blur = sim::load_shipped_blur_models(device);
   std::vector<bench::Result> rows;
   nlohmann::json per_size = nlohmann::json::array();
 
@@ -78,9 +80,15 @@ void run_bench_sim(const BenchSimArgs& a) {
   const double imaging_per_px_fftw = wr_fftw.image_seconds / (256.0 * 256.0);
 
   for (int size : a.sizes) {
-    for (int channels : {1, 3}) {
+    // Grey; RGB at one wavelength; RGB at one wavelength per channel
+    // (sim::kRgbWavelengthsM: a blur model and a PSF-convolution pass each).
+    for (const int wavelengths : {0, 1, 3}) {
+      const int channels = wavelengths == 0 ? 1 : 3;
       sim::Params p = sim::preset(a.preset);
       p.image = {size, size, channels, 1};
+      if (wavelengths == 3)
+        p.optics.wavelengths_m.assign(std::begin(sim::kRgbWavelengthsM),
+                                      std::end(sim::kRgbWavelengthsM));
       sim::Simulator s(device, p, blur, {});
       Tensor x = Tensor::from(device, {1, channels, size, size}, test_scene(channels, size, size));
       Tensor y = Tensor::empty(device, x.shape());
@@ -96,18 +104,25 @@ void run_bench_sim(const BenchSimArgs& a) {
       // propagation per grid point (its cost is linear in sources; measured
       // per source above), plus the pixel sum (linear in pixels and channels).
       const double matched_sources = double(s.field().grid_h()) * s.field().grid_w();
-      // (One wavelength: the PSFs serve every channel; the sum runs per channel.)
+      // One wavelength: the PSFs serve every channel; the sum runs per
+      // channel. One per channel: the reference propagates each wavelength
+      // (the phase scales as 1/λ, diffraction as λ) on the same grid.
+      const double psf_sets = wavelengths == 3 ? 3.0 : 1.0;
       const double wave_matched =
-          per_source * matched_sources + imaging_per_px * double(size) * size * channels;
-      const double fftw_matched =
-          per_source_fftw * matched_sources + imaging_per_px_fftw * double(size) * size * channels;
-      const std::string tag = std::to_string(size) + "² " + (channels == 1 ? "grey" : "colour");
+          per_source * matched_sources * psf_sets + imaging_per_px * double(size) * size * channels;
+      const double fftw_matched = per_source_fftw * matched_sources * psf_sets +
+                                  imaging_per_px_fftw * double(size) * size * channels;
+      const std::string tag = std::to_string(size) + "² " +
+                              (wavelengths == 0   ? "grey"
+                               : wavelengths == 1 ? "colour"
+                                                  : "colour 3λ");
       rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
                       "wave ref., matched grid (extrap.)", 1 / wave_matched});
       rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
                       "wave ref. FFTW, matched (extrap.)", 1 / fftw_matched});
       nlohmann::json j = {{"size", size},
                           {"channels", channels},
+                          {"wavelengths", std::max(1, wavelengths)},
                           {"fps", 1 / sec},
                           {"seconds_per_frame", sec},
                           {"field_grid", {s.field().grid_h(), s.field().grid_w()}},

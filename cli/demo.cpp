@@ -168,7 +168,7 @@ void run_demo(const DemoArgs& a) {
 
   const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
-  const auto blur = sim::load_default_blur_model(device);
+  const auto blur = sim::load_shipped_blur_models(device);
   Stream stream(device);
   jr2::FaceOptions fo;
   // Clean faces and the gallery.

@@ -1,8 +1,12 @@
 #include "sim_common.hpp"
 
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/sim/blur_model.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <exception>
+#include <iterator>
 
 namespace vkjr2::cli {
 
@@ -13,13 +17,59 @@ void add_path_options(CLI::App* cmd, PathArgs& a) {
   cmd->add_option("--config", a.config,
                   "JSON or YAML (.yaml/.yml) parameter file (docs/sim.md §1); overrides --preset");
   cmd->add_option("--cn2", a.cn2, "Uniform Cn² along the path, m^(-2/3)");
-  cmd->add_option("--r0", a.r0, "Fried parameter r0 in metres (instead of --cn2)");
+  cmd->add_option("--r0", a.r0,
+                  "Fried parameter r0 in metres at the first wavelength (instead of --cn2)");
   cmd->add_option("--range", a.range, "Path length L in metres");
+  cmd->add_option("--wavelengths", a.wavelengths,
+                  "Wavelength(s) in nm: one for all channels, one per channel (R,G,B), or 'rgb' "
+                  "for 610,525,465 (the shipped blur models' set)")
+      ->check([](const std::string& v) {
+        try {
+          parse_wavelengths_nm(v, "--wavelengths");
+          return std::string();
+        } catch (const Error& e) {
+          return std::string(e.what());
+        }
+      });
   cmd->add_flag("--grey", a.grey, "Simulate one grey channel instead of RGB");
 }
 
-sim::Params params_for_image(const PathArgs& a, int height, int width) {
+std::vector<double> parse_wavelengths_nm(const std::string& text, const std::string& option) {
+  if (text == "rgb") return {std::begin(sim::kRgbWavelengthsM), std::end(sim::kRgbWavelengthsM)};
+  std::vector<double> out;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t comma = std::min(text.find(',', start), text.size());
+    const std::string item = text.substr(start, comma - start);
+    std::size_t used = 0;
+    double nm = 0;
+    try {
+      nm = std::stod(item, &used);
+    } catch (const std::exception&) {
+      used = 0;
+    }
+    if (item.empty() || used != item.size() || !std::isfinite(nm) || nm <= 0) {
+      throw InvalidArgument(option, "'" + text + "' is not a list of wavelengths in nm",
+                            "write e.g. 525, or 610,525,465 (one per channel), or rgb");
+    }
+    if (nm < 100 || nm > 20000) {
+      throw InvalidArgument(option, item + " nm is outside 100..20000 nm",
+                            "give the wavelength in nanometres, e.g. 525");
+    }
+    out.push_back(nm * 1e-9);
+    start = comma + 1;
+  }
+  return out;
+}
+
+sim::Params params_from_args(const PathArgs& a) {
   sim::Params p = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
+  if (!a.wavelengths.empty()) {
+    // An r0 given "at the first wavelength" keeps the wavelength it was given at.
+    if (p.path.strength == sim::Strength::r0 && p.path.r0_wavelength_m == 0)
+      p.path.r0_wavelength_m = p.optics.wavelengths_m.front();
+    p.optics.wavelengths_m = parse_wavelengths_nm(a.wavelengths, "--wavelengths");
+  }
   if (a.range) p.path.range_m = *a.range;
   if (a.cn2 && a.r0) throw InvalidArgument("--cn2/--r0", "give one turbulence strength, not both");
   if (a.cn2) {
@@ -29,14 +79,21 @@ sim::Params params_for_image(const PathArgs& a, int height, int width) {
   if (a.r0) {
     p.path.strength = sim::Strength::r0;
     p.path.r0_m = *a.r0;
+    p.path.r0_wavelength_m = p.optics.wavelengths_m.front();
   }
+  return p;
+}
+
+sim::Params params_for_image(const PathArgs& a, int height, int width) {
+  sim::Params p = params_from_args(a);
   p.image = {height, width, a.grey ? 1 : 3, 1};
   if (p.optics.wavelengths_m.size() > 1 && int(p.optics.wavelengths_m.size()) != p.image.channels) {
     throw InvalidArgument("params",
                           "the config gives " + std::to_string(p.optics.wavelengths_m.size()) +
                               " wavelengths for a " + std::to_string(p.image.channels) +
                               "-channel image",
-                          "give one wavelength, or one per channel");
+                          a.grey ? "give one wavelength for --grey"
+                                 : "give one wavelength, or one per channel (R,G,B)");
   }
   return p;
 }

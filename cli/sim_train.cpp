@@ -9,6 +9,7 @@
 #include <cstdio>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "commands.hpp"
@@ -27,6 +28,7 @@ constexpr int kDefaultCount = 24;
 
 struct TrainArgs {
   std::string output, preset = "moderate", config, device;
+  std::optional<double> wavelength_nm;
   sim::P2sArtifactConfig artifact = [] {
     sim::P2sArtifactConfig c;
     c.basis.size = kDefaultSize;
@@ -38,7 +40,13 @@ struct TrainArgs {
 
 void run_sim_train(TrainArgs& a) {
   check_writable(a.output, a.force);
-  const sim::Params params = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
+  sim::Params params = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
+  if (a.wavelength_nm) {
+    if (params.path.strength == sim::Strength::r0 && params.path.r0_wavelength_m == 0)
+      params.path.r0_wavelength_m = params.optics.wavelengths_m.front();
+    params.optics.wavelengths_m = {*a.wavelength_nm * 1e-9};
+    params.image.channels = 1;
+  }
   Device device = open_device(a.device);
   std::map<std::string, std::unique_ptr<Progress>> bars;
   auto progress = [&](const sim::P2sProgress& p) {
@@ -55,8 +63,11 @@ void run_sim_train(TrainArgs& a) {
   bars.clear();
   const sim::Derived d = sim::derive(params);
   const auto& b = a.artifact.basis;
+  const double wavelength_nm = d.channels[std::size_t(a.artifact.channel)].wavelength_m * 1e9;
   if (a.json_out) {
     const nlohmann::json j = {{"output", a.output},
+                              {"channel", a.artifact.channel},
+                              {"wavelength_nm", wavelength_nm},
                               {"nyquist", d.channels[std::size_t(a.artifact.channel)].nyquist},
                               {"size", b.size},
                               {"count", b.count},
@@ -73,8 +84,8 @@ void run_sim_train(TrainArgs& a) {
                               {"total_seconds", r.total_seconds}};
     std::printf("%s\n", j.dump(2).c_str());
   } else {
-    std::printf("sim-train: wrote %s (K=%d kernels of %dx%d, Nyquist %.3f) in %.1f s\n",
-                a.output.c_str(), b.count, b.size, b.size,
+    std::printf("sim-train: wrote %s (K=%d kernels of %dx%d, λ %.1f nm, Nyquist %.4f) in %.1f s\n",
+                a.output.c_str(), b.count, b.size, b.size, wavelength_nm,
                 d.channels[std::size_t(a.artifact.channel)].nyquist, r.total_seconds);
     std::printf(
         "  held-out PSF error (relative L2): P2S %.4f, PCA projection %.4f, mean PSF alone %.4f\n",
@@ -98,13 +109,26 @@ void add_sim_train(CLI::App& app) {
       "PSF error. Same seeds → same file.\n"
       "Examples:\n"
       "  vkjr2 sim-train artifacts/p2s_default.safetensors --force    # the shipped model\n"
-      "  vkjr2 sim-train mine.safetensors --config optics.json --size 25 --count 24");
+      "  vkjr2 sim-train artifacts/p2s_610nm.safetensors --wavelength 610 --force   # shipped, "
+      "red\n"
+      "  vkjr2 sim-train mine.safetensors --config optics.json --size 25 --count 24\n"
+      "  vkjr2 sim-train blue.safetensors --config rgb.yaml --channel 2   # the config's 3rd "
+      "wavelength");
   cmd->add_option("OUT", a->output, "Output .safetensors file")->required();
   cmd->add_option("--preset", a->preset, "Optics and path preset")
       ->default_val("moderate")
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
   cmd->add_option("--config", a->config,
                   "JSON or YAML parameter file (its optics set the sampling); overrides --preset");
+  CLI::Option* wavelength =
+      cmd->add_option("--wavelength", a->wavelength_nm,
+                      "Train for this wavelength in nm instead of the optics' (same D, f, pitch)")
+          ->check(CLI::Range(100.0, 20000.0));
+  cmd->add_option("--channel", a->artifact.channel,
+                  "Train for this channel's wavelength of a --config with one per channel")
+      ->default_val(0)
+      ->check(CLI::Range(0, 3))
+      ->excludes(wavelength);
   auto& b = a->artifact.basis;
   auto& t = a->artifact.train;
   cmd->add_option("--size", b.size, "PSF kernel size S (odd)")

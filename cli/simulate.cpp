@@ -29,7 +29,8 @@ using nlohmann::json;
 
 struct SimArgs {
   PathArgs path;
-  std::string input, output, device, blur_model, dump_fields;
+  std::string input, output, device, dump_fields;
+  std::vector<std::string> blur_models;
   std::uint64_t seed = 1;
   int frames = 0, max_frames = 0;
   bool no_blur = false, no_tilt = false, json_out = false, quiet = false, force = false;
@@ -95,9 +96,9 @@ void dump_fields(const sim::Simulator& sim, const fs::path& dir, bool force) {
 
 // One input file → one output file, on a Simulator made for its frame size.
 // Returns the JSON summary; `text` gets the human-readable one.
-json simulate_one(const Device& device, const std::shared_ptr<const sim::BlurModel>& blur,
-                  const SimArgs& a, const fs::path& in, const fs::path& out, std::uint64_t seed,
-                  std::string& text) {
+json simulate_one(const Device& device,
+                  const std::vector<std::shared_ptr<const sim::BlurModel>>& blur, const SimArgs& a,
+                  const fs::path& in, const fs::path& out, std::uint64_t seed, std::string& text) {
   const std::string in_name = in.string(), out_name = out.string();
   if (!fs::exists(in)) throw Error("simulate", in_name + " does not exist", "check the path");
   const bool video_in = is_video_path(in);
@@ -180,6 +181,13 @@ json simulate_one(const Device& device, const std::shared_ptr<const sim::BlurMod
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   const sim::ChannelDerived& c0 = sim->derived().channels[0];
   const auto& im = sim->params().image;
+  json per_channel = json::array();
+  for (const sim::ChannelDerived& c : sim->derived().channels) {
+    per_channel.push_back({{"wavelength_nm", c.wavelength_m * 1e9},
+                           {"r0_m", c.r0_m},
+                           {"d_over_r0", c.d_over_r0},
+                           {"nyquist", c.nyquist}});
+  }
   json summary = {{"input", in_name},
                   {"output", out_name},
                   {"frames", done},
@@ -196,6 +204,7 @@ json simulate_one(const Device& device, const std::shared_ptr<const sim::BlurMod
                   {"isoplanatic_angle_px", c0.isoplanatic_angle_px},
                   {"tilt_std_px", c0.tilt_std_px},
                   {"rytov", c0.rytov},
+                  {"per_channel", per_channel},
                   {"grid", {sim->field().grid_h(), sim->field().grid_w()}},
                   {"warnings", sim->derived().warnings}};
   char line[512];
@@ -261,10 +270,13 @@ void run_simulate(const SimArgs& a) {
     jobs.emplace_back(in, out);
   }
   const Device device = open_device(a.device);
-  std::shared_ptr<const sim::BlurModel> blur;
+  std::vector<std::shared_ptr<const sim::BlurModel>> blur;
   if (!a.no_blur) {
-    blur = a.blur_model.empty() ? sim::load_default_blur_model(device)
-                                : sim::load_blur_model(device, a.blur_model);
+    if (a.blur_models.empty()) {
+      blur = sim::load_shipped_blur_models(device);
+    } else {
+      for (const auto& path : a.blur_models) blur.push_back(sim::load_blur_model(device, path));
+    }
   }
   json all = json::array();
   for (std::size_t i = 0; i < jobs.size(); ++i) {
@@ -325,9 +337,11 @@ void add_simulate(CLI::App& app) {
       ->check(CLI::Range(0.0, 1.0));
   cmd->add_flag("--no-blur", a->no_blur, "Tilt (and noise) only");
   cmd->add_flag("--no-tilt", a->no_tilt, "Blur (and noise) only");
-  cmd->add_option(
-      "--blur-model", a->blur_model,
-      "PSF basis + P2S network (.safetensors from vkjr2 sim-train); default: the shipped one");
+  cmd->add_option("--blur-model", a->blur_models,
+                  "PSF basis + P2S network (.safetensors from vkjr2 sim-train); repeat it for "
+                  "channels of other wavelengths (each channel takes the one made for its "
+                  "sampling); default: the shipped ones (525 nm, and 610/465 nm for --wavelengths "
+                  "rgb)");
   cmd->add_option(
       "--dump-fields", a->dump_fields,
       "Folder for the first frame's tilt maps and PSF-basis weights as PNG (+ fields.json)");

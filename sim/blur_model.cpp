@@ -3,6 +3,8 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/blur_model.hpp>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdlib>
 #include <string>
 #include <vector>
@@ -52,23 +54,28 @@ P2sBlurModel::P2sBlurModel(const Device& device, const P2sModel& model)
   b3_ = Tensor::from(device_, {count_}, b3);
 }
 
-const Tensor& P2sBlurModel::first_layer(std::int64_t planes) const {
-  if (planes != w1_planes_) {
-    const std::int64_t inputs = j_max_ - 3;
-    std::vector<float> w(std::size_t(hidden_ * planes), 0.f);
-    for (std::int64_t o = 0; o < hidden_; ++o)
-      for (std::int64_t i = 0; i < inputs; ++i)
-        w[std::size_t(o * planes + 2 + i)] = w1_host_[std::size_t(o * inputs + i)];
-    w1_ = Tensor::from(device_, {hidden_, planes, 1, 1}, w);
-    w1_planes_ = planes;
-  }
-  return w1_;
+const Tensor& P2sBlurModel::first_layer(std::int64_t planes, float scale) const {
+  for (const FirstLayer& l : w1_)
+    if (l.planes == planes && l.scale == scale) return l.weight;
+  const std::int64_t inputs = j_max_ - 3;
+  std::vector<float> w(std::size_t(hidden_ * planes), 0.f);
+  for (std::int64_t o = 0; o < hidden_; ++o)
+    for (std::int64_t i = 0; i < inputs; ++i)
+      w[std::size_t(o * planes + 2 + i)] = w1_host_[std::size_t(o * inputs + i)] * scale;
+  w1_.push_back({planes, scale, Tensor::from(device_, {hidden_, planes, 1, 1}, w)});
+  return w1_.back().weight;
 }
 
-void P2sBlurModel::weights(Stream& stream, const Tensor& coefficients, const Tensor& beta) const {
+void P2sBlurModel::weights(Stream& stream, const Tensor& coefficients, const Tensor& beta,
+                           float coefficient_scale) const {
   const char* op = "P2sBlurModel::weights";
   kernels::require_f32_rank(coefficients, 4, op, "coefficients");
   const Shape& cs = coefficients.shape();
+  if (!std::isfinite(coefficient_scale) || coefficient_scale <= 0) {
+    throw InvalidArgument(
+        op, "coefficient_scale " + std::to_string(coefficient_scale) + " is not a positive number",
+        "pass λ_0/λ_c > 0");
+  }
   if (cs[1] + 1 < j_max_) {
     throw InvalidArgument(op, "coefficients " + cs.str() + " hold a_2..a_" +
                                   std::to_string(cs[1] + 1) + "; the model reads a_4..a_" +
@@ -81,7 +88,7 @@ void P2sBlurModel::weights(Stream& stream, const Tensor& coefficients, const Ten
   hidden.leaky_slope = kLeakySlope;
   const Tensor t1 = Tensor::empty(device_, {n, hidden_, h, w});
   const Tensor t2 = Tensor::empty(device_, {n, hidden_, h, w});
-  kernels::conv2d(stream, coefficients, first_layer(cs[1]), &b1_, t1, hidden);
+  kernels::conv2d(stream, coefficients, first_layer(cs[1], coefficient_scale), &b1_, t1, hidden);
   kernels::conv2d(stream, t1, w2_, &b2_, t2, hidden);
   kernels::conv2d(stream, t2, w3_, &b3_, beta, {});
 }
@@ -111,6 +118,39 @@ std::shared_ptr<const BlurModel> load_default_blur_model(const Device& device) {
         "`vkjr2 sim-train`, or pass --no-blur");
   }
   return load_blur_model(device, path);
+}
+
+std::vector<std::filesystem::path> shipped_blur_model_paths() {
+  namespace fs = std::filesystem;
+  const fs::path first = default_blur_model_path();
+  std::vector<fs::path> paths;
+  if (fs::exists(first)) paths.push_back(first);
+  std::error_code ec;
+  std::vector<fs::path> others;
+  for (const auto& e : fs::directory_iterator(first.parent_path(), ec)) {
+    const std::string name = e.path().filename().string();
+    if (e.is_regular_file(ec) && name.starts_with("p2s_") &&
+        e.path().extension() == ".safetensors" && e.path().filename() != first.filename()) {
+      others.push_back(e.path());
+    }
+  }
+  std::sort(others.begin(), others.end());
+  paths.insert(paths.end(), others.begin(), others.end());
+  return paths;
+}
+
+std::vector<std::shared_ptr<const BlurModel>> load_shipped_blur_models(const Device& device) {
+  const auto paths = shipped_blur_model_paths();
+  if (paths.empty()) {
+    throw Error("load_shipped_blur_models",
+                "no shipped blur model (p2s_*.safetensors) in " +
+                    default_blur_model_path().parent_path().string(),
+                "set VKJR2_ARTIFACT_DIR to the folder holding them, make one with "
+                "`vkjr2 sim-train`, or pass --no-blur");
+  }
+  std::vector<std::shared_ptr<const BlurModel>> models;
+  for (const auto& p : paths) models.push_back(load_blur_model(device, p));
+  return models;
 }
 
 }  // namespace vkjr2::sim

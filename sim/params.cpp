@@ -501,6 +501,11 @@ Params params_from_json(std::string_view text, std::string_view source) {
   }
   if (doc.contains("zernike_modes"))
     p.zernike_modes = r.integer(doc["zernike_modes"], "zernike_modes");
+  // One wavelength per channel and no image.channels: the channels follow the wavelengths.
+  const bool channels_given =
+      doc.contains("image") && doc["image"].is_object() && doc["image"].contains("channels");
+  if (!channels_given && p.optics.wavelengths_m.size() > 1)
+    p.image.channels = static_cast<int>(p.optics.wavelengths_m.size());
 
   try {
     validate(p);

@@ -155,6 +155,7 @@ std::string summary(const Params& params, const Derived& derived);
 //  "image": {"height", "width", "channels", "batch"},
 //  "zernike_modes"}
 // Unknown keys, wrong types and conflicting keys are errors naming the key.
+// Several wavelengths and no image.channels: the image gets one channel per wavelength.
 // source names the text in messages (a file name).
 Params params_from_json(std::string_view text, std::string_view source = "config");
 std::string params_to_json(const Params& params);

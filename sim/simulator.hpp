@@ -16,6 +16,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <vector>
 
 namespace vkjr2::sim {
 
@@ -31,7 +32,10 @@ class BlurModel {
   virtual double nyquist() const = 0;
   // coefficients [N, M, h, w] in radians, planes a_2..a_{M+1} with
   // M + 1 ≥ j_max (the model reads a_4..a_{j_max}) → beta [N, K, h, w].
-  virtual void weights(Stream& stream, const Tensor& coefficients, const Tensor& beta) const = 0;
+  // The model sees coefficient_scale · coefficients: the Simulator passes
+  // λ_0/λ_c to turn phase at channel 0's wavelength into phase at channel c's.
+  virtual void weights(Stream& stream, const Tensor& coefficients, const Tensor& beta,
+                       float coefficient_scale = 1.f) const = 0;
 };
 
 struct SensorNoise {
@@ -53,6 +57,14 @@ class Simulator {
   // the blur model's sampling or modes do not fit the parameters.
   Simulator(const Device& device, const Params& params, std::shared_ptr<const BlurModel> blur,
             const SimOptions& options = {});
+  // One blur model per distinct channel sampling: channel c blurs with the
+  // first model whose Nyquist ratio matches λ_c f / (2 D p), its
+  // coefficients scaled by λ_0/λ_c (phase at its own wavelength; the tilt is
+  // achromatic and shared). Models may be listed that no channel uses; a
+  // channel that none fits is an InvalidArgument naming it and the fix.
+  Simulator(const Device& device, const Params& params,
+            std::vector<std::shared_ptr<const BlurModel>> blur_models,
+            const SimOptions& options = {});
   ~Simulator();
   Simulator(const Simulator&) = delete;
   Simulator& operator=(const Simulator&) = delete;
@@ -68,23 +80,38 @@ class Simulator {
   const Derived& derived() const { return derived_; }
   const TurbulenceField& field() const { return *field_; }
   // The last frame's maps: flow [B, 2, H, W] (the warp's sampling offset,
-  // = −tilt), beta [B, K, H, W] (undefined without blur).
+  // = −tilt), beta [B, K, H, W] of channel 0 (undefined without blur).
   const Tensor& flow() const { return flow_; }
-  const Tensor& beta() const { return beta_; }
+  const Tensor& beta() const { return beta(0); }
+  // Channel c's β maps (channels that share a blur group share them).
+  const Tensor& beta(int channel) const;
+  // The blur model channel c uses (null without blur).
+  const BlurModel* blur_model(int channel) const;
 
  private:
-  void blur(Stream& stream, const Tensor& x, const Tensor& y);
+  // A run of consecutive channels (at most 4) that blur with one model.
+  struct BlurGroup {
+    int first = 0, count = 0;
+    std::shared_ptr<const BlurModel> model;
+    float coefficient_scale = 1;               // λ_0 / λ_c
+    std::unique_ptr<kernels::PsfConvFft> fft;  // the FFT path, when it is the cheaper one
+    // beta_grid [B, K, gh, gw], beta [B, K, H, W], norm [B, 1, H, W]; with
+    // more than one group also the group's warped and blurred channels
+    // [B, count, H, W] (with one group these are the whole frame's).
+    Tensor beta_grid, beta, norm, warped, blurred;
+  };
+  void blur(Stream& stream);
+  const BlurGroup& group_of(int channel) const;
   Device device_;
   Params params_;
   Derived derived_;
   SimOptions options_;
-  std::shared_ptr<const BlurModel> blur_;
+  std::vector<BlurGroup> groups_;
   std::unique_ptr<TurbulenceField> field_;
-  std::unique_ptr<kernels::PsfConvFft> fft_;  // the blur's FFT path, when it is the cheaper one
   std::uint64_t seed_ = 0;
   std::int64_t frame_ = -1;
   Tensor input_;  // the last frame's x (its backward needs it)
-  Tensor flow_, warped_, beta_grid_, beta_, norm_, blurred_;
+  Tensor flow_, warped_, blurred_;
 };
 
 }  // namespace vkjr2::sim

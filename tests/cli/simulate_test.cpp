@@ -203,6 +203,64 @@ TEST(CliSimTrain, TrainsASmallModelTheSimulatorUses) {
   EXPECT_EQ(r.code, 0) << r.output;
   r = run_cli("sim-train " + model.string() + " --size 8");
   EXPECT_NE(r.code, 0);
+  // --wavelength: the same optics at another wavelength, which simulate then
+  // takes for a channel of that wavelength.
+  const fs::path red = tmp.path / "tiny700.safetensors";
+  r = run_cli("sim-train " + red.string() +
+              " --wavelength 700 --size 9 --count 6 --psf-samples 200 --train-samples 512 "
+              "--steps 30 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json jr = parse_json(r.output);
+  EXPECT_NEAR(jr["wavelength_nm"].get<double>(), 700, 1e-9);
+  EXPECT_NEAR(jr["nyquist"].get<double>(), 700e-9 * 1.6 / (2 * 0.2 * 3.45e-6), 1e-6);
+  r = run_cli("simulate " + in.string() + " " + (tmp.path / "red.png").string() +
+              " --wavelengths 700 --grey --blur-model " + red.string() + " --quiet");
+  EXPECT_EQ(r.code, 0) << r.output;
+  r = run_cli("simulate " + in.string() + " " + (tmp.path / "red2.png").string() +
+              " --wavelengths 700 --grey --blur-model " + model.string() + " --quiet");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("Nyquist"), std::string::npos) << r.output;
+  r = run_cli("sim-train " + red.string() + " --wavelength 700 --channel 1 --force");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
+// One wavelength per channel: the shipped models cover --wavelengths rgb;
+// the summary reports each channel's λ, D/r0 and sampling.
+TEST(CliSimulate, RgbWavelengthsBlurEachChannelAtItsOwn) {
+  TempDir tmp("simulate_rgb");
+  const fs::path in = write_scene(tmp.path, 48, 56);
+  const fs::path out = tmp.path / "rgb.png";
+  auto r = run_cli("simulate " + in.string() + " " + out.string() +
+                   " --wavelengths rgb --seed 3 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  ASSERT_EQ(j["per_channel"].size(), 3u);
+  const double want_nm[3] = {610, 525, 465};
+  for (int c = 0; c < 3; ++c) {
+    const json& ch = j["per_channel"][std::size_t(c)];
+    EXPECT_NEAR(ch["wavelength_nm"].get<double>(), want_nm[c], 1e-6);
+    EXPECT_NEAR(ch["nyquist"].get<double>(), want_nm[c] * 1e-9 * 1.6 / (2 * 0.2 * 3.45e-6), 1e-6);
+  }
+  // D/r0 ∝ λ^(-6/5): blue sees the strongest turbulence.
+  EXPECT_GT(j["per_channel"][2]["d_over_r0"].get<double>(),
+            j["per_channel"][0]["d_over_r0"].get<double>() * 1.3);
+  EXPECT_TRUE(fs::exists(out));
+  // Two wavelengths for three channels, and no number at all: exit 2, naming the option.
+  r = run_cli("simulate " + in.string() + " " + (tmp.path / "x.png").string() +
+              " --wavelengths 610,525 --quiet");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.output.find("wavelength"), std::string::npos) << r.output;
+  r = run_cli("simulate " + in.string() + " " + (tmp.path / "x.png").string() +
+              " --wavelengths red --quiet");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--wavelengths"), std::string::npos) << r.output;
+  // A wavelength no shipped model samples at: the error names the channel and the fix.
+  r = run_cli("simulate " + in.string() + " " + (tmp.path / "x.png").string() +
+              " --wavelengths 700,525,465 --quiet");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("channel 0"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("sim-train"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(tmp.path / "x.png"));
 }
 
 TEST(CliDemo, SmallStudyWritesEveryOutput) {

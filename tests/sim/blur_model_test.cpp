@@ -5,9 +5,14 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
+#include <iterator>
+#include <memory>
 #include <random>
+#include <string>
+#include <vector>
 
 #include "support/expect.hpp"
 #include "support/frame_gradcheck.hpp"
@@ -36,8 +41,25 @@ class BlurModelTest : public ::testing::Test {
     c.train.min_pupil_px = 32;
     c.hidden = 16;
     make_p2s_artifact(test::device(), params(1, 1, 8, 8), c, path_);
+    // The same optics at 610 nm: another sampling (Nyquist ×610/525).
+    red_path_ = fs::temp_directory_path() /
+                ("vkjr2_blur_model_red_" + std::to_string(::getpid()) + ".safetensors");
+    Params red = params(1, 1, 8, 8);
+    red.optics.wavelengths_m = {kRed};
+    make_p2s_artifact(test::device(), red, c, red_path_);
   }
-  static void TearDownTestSuite() { fs::remove(path_); }
+  static void TearDownTestSuite() {
+    fs::remove(path_);
+    fs::remove(red_path_);
+  }
+  // Channel 0 at the preset's 525 nm, channel 1 at 610 nm.
+  static Params two_wavelengths(int h, int w) {
+    Params p = params(1, 2, h, w);
+    p.optics.wavelengths_m = {525e-9, kRed};
+    return p;
+  }
+  static constexpr double kRed = 610e-9;
+  static fs::path red_path_;
   static Params params(int batch, int channels, int h, int w) {
     Params p = preset("strong");
     p.zernike_modes = 15;
@@ -47,6 +69,7 @@ class BlurModelTest : public ::testing::Test {
   static fs::path path_;
 };
 fs::path BlurModelTest::path_;
+fs::path BlurModelTest::red_path_;
 
 // The 1×1-convolution form on the device equals the network itself.
 TEST_F(BlurModelTest, WeightsMatchTheNetwork) {
@@ -81,8 +104,25 @@ TEST_F(BlurModelTest, WeightsMatchTheNetwork) {
         want[(std::size_t(b) * 6 + k) * points + p] =
             want_rows[(std::size_t(b) * points + p) * 6 + k];
   test::expect_all_near(beta.download(), want, 1e-4, 1e-5);
+  // A coefficient scale (λ_0/λ_c) is the network on scaled inputs.
+  std::vector<double> scaled = rows;
+  for (double& v : scaled) v *= 0.8;
+  const auto want_scaled_rows = predict_betas(dev, *model.net, scaled);
+  blur.weights(s, coeffs, beta, 0.8f);
+  s.run();
+  const auto got_scaled = beta.download();
+  for (int b = 0; b < n; ++b)
+    for (int p = 0; p < points; ++p)
+      for (int k = 0; k < 6; ++k)
+        EXPECT_NEAR(got_scaled[(std::size_t(b) * 6 + k) * points + p],
+                    want_scaled_rows[(std::size_t(b) * points + p) * 6 + k], 1e-4);
+  blur.weights(s, coeffs, beta);  // the unscaled layer is still there
+  s.run();
+  test::expect_all_near(beta.download(), want, 1e-4, 1e-5);
   Tensor wrong = Tensor::empty(dev, {n, 12, h, w});  // a_2..a_13 only
   EXPECT_THROW(blur.weights(s, wrong, beta), InvalidArgument);
+  EXPECT_THROW(blur.weights(s, coeffs, beta, 0.f), InvalidArgument);
+  EXPECT_THROW(blur.weights(s, coeffs, beta, std::nanf("")), InvalidArgument);
 }
 
 // Blur removes detail: the frame's gradient energy falls well below the
@@ -144,6 +184,34 @@ TEST_F(BlurModelTest, MismatchedOpticsAndMissingFilesAreClearErrors) {
   EXPECT_THROW(load_blur_model(dev, "/nonexistent/model.safetensors"), Error);
 }
 
+// Channels of two wavelengths blur with two models (two groups, sliced and
+// concatenated): the backward still matches finite differences.
+TEST_F(BlurModelTest, PerChannelWavelengthBackwardMatchesFiniteDifferences) {
+  Device& dev = test::device();
+  const std::vector<std::shared_ptr<const BlurModel>> models = {load_blur_model(dev, red_path_),
+                                                                load_blur_model(dev, path_)};
+  Simulator sim(dev, two_wavelengths(11, 13), models, {});
+  EXPECT_EQ(sim.blur_model(0), models[1].get());
+  EXPECT_EQ(sim.blur_model(1), models[0].get());
+  test::expect_frame_gradient(sim, test::random_floats(std::size_t(2 * 11 * 13), 10, 0.f, 1.f), 8,
+                              5, "simulator two wavelengths d/dx");
+}
+
+// A channel no model was made for is an error naming it and the fix.
+TEST_F(BlurModelTest, AChannelWithoutAModelForItsWavelengthIsAClearError) {
+  Device& dev = test::device();
+  try {
+    Simulator sim(dev, two_wavelengths(16, 16), load_blur_model(dev, path_), {});
+    ADD_FAILURE() << "no error";
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("channel 1 (λ = 610"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("--channel 1"), std::string::npos) << e.what();
+  }
+  EXPECT_THROW(
+      Simulator(dev, two_wavelengths(16, 16), std::vector<std::shared_ptr<const BlurModel>>{}, {}),
+      InvalidArgument);
+}
+
 // The shipped model (artifacts/p2s_default.safetensors) loads and fits the presets.
 TEST(BlurModelDefault, ShippedModelFitsThePresets) {
   Device& dev = test::device();
@@ -153,6 +221,83 @@ TEST(BlurModelDefault, ShippedModelFitsThePresets) {
     p.image = {32, 32, 3, 1};
     EXPECT_NO_THROW(Simulator(dev, p, blur, {})) << name;
   }
+}
+
+// The shipped models cover kRgbWavelengthsM for the presets' optics, and an
+// RGB frame with one wavelength per channel is, channel by channel, the grey
+// frame simulated at that channel's wavelength with the same seed: the
+// turbulence is the same (coefficients in radians at λ_0, scaled by λ_0/λ_c;
+// the tilt is achromatic), and each channel blurs with its own model.
+TEST(BlurModelDefault, RgbChannelsAreTheGreyFramesAtTheirWavelengths) {
+  Device& dev = test::device();
+  const auto models = load_shipped_blur_models(dev);
+  ASSERT_GE(models.size(), 3u);
+  const int h = 40, w = 48;
+  Params rgb = preset("strong");
+  rgb.optics.wavelengths_m.assign(std::begin(kRgbWavelengthsM), std::end(kRgbWavelengthsM));
+  rgb.image = {h, w, 3, 1};
+  const Derived d = derive(rgb);
+  SimOptions o;
+  o.field.tilt_rho = 0.9;
+  Simulator sim(dev, rgb, models, o);
+  for (int c = 0; c < 3; ++c) {
+    ASSERT_NE(sim.blur_model(c), nullptr);
+    EXPECT_NEAR(sim.blur_model(c)->nyquist() / d.channels[std::size_t(c)].nyquist, 1.0, 0.02) << c;
+  }
+  EXPECT_NE(sim.blur_model(0), sim.blur_model(1));
+  EXPECT_NE(sim.blur_model(1), sim.blur_model(2));
+  std::vector<float> xs(std::size_t(3 * h * w));
+  for (int c = 0; c < 3; ++c)
+    for (int y = 0; y < h; ++y)
+      for (int x = 0; x < w; ++x)
+        xs[(std::size_t(c) * h + y) * w + x] = ((x / 3 + y / 3 + c) % 2) ? 0.85f : 0.15f;
+  auto run = [&](Simulator& s, const std::vector<float>& in, int channels) {
+    const Shape shape{1, channels, h, w};
+    const Tensor x = Tensor::from(dev, shape, in), y = Tensor::empty(dev, shape);
+    s.reset(11);
+    Stream st(dev);
+    std::vector<float> frames;
+    for (int t = 0; t < 2; ++t) {  // two frames of a video
+      s.frame(st, x, y);
+      st.run();
+      const auto v = y.download();
+      frames.insert(frames.end(), v.begin(), v.end());
+    }
+    return frames;
+  };
+  const auto got = run(sim, xs, 3);
+  std::vector<std::vector<float>> grey(3);
+  for (int c = 0; c < 3; ++c) {
+    Params p = rgb;
+    p.optics.wavelengths_m = {kRgbWavelengthsM[c]};
+    p.image.channels = 1;
+    Simulator one(dev, p, models, o);
+    const std::vector<float> plane(xs.begin() + std::ptrdiff_t(c) * h * w,
+                                   xs.begin() + std::ptrdiff_t(c + 1) * h * w);
+    grey[std::size_t(c)] = run(one, plane, 1);
+    std::vector<float> want, have;
+    for (int t = 0; t < 2; ++t) {
+      const auto at = std::ptrdiff_t(t) * h * w;
+      want.insert(want.end(), grey[std::size_t(c)].begin() + at,
+                  grey[std::size_t(c)].begin() + at + h * w);
+      const auto from = std::ptrdiff_t(t * 3 + c) * h * w;
+      have.insert(have.end(), got.begin() + from, got.begin() + from + h * w);
+    }
+    test::expect_all_near(have, want, 2e-4, 1e-4);
+  }
+  // The wavelength matters: the red and blue grey frames of one scene differ.
+  Params p = rgb;
+  p.image.channels = 1;
+  std::vector<float> frames[2];
+  for (int i = 0; i < 2; ++i) {
+    p.optics.wavelengths_m = {kRgbWavelengthsM[i == 0 ? 0 : 2]};
+    Simulator one(dev, p, models, o);
+    frames[i] = run(one, std::vector<float>(xs.begin(), xs.begin() + h * w), 1);
+  }
+  double diff = 0;
+  for (std::size_t i = 0; i < frames[0].size(); ++i)
+    diff = std::max(diff, std::fabs(double(frames[0][i] - frames[1][i])));
+  EXPECT_GT(diff, 0.05);
 }
 
 }  // namespace
