@@ -340,7 +340,8 @@ TEST(CliBenchSim, ReportsFramesPerSecondAndSpeedup) {
   ASSERT_EQ(r.code, 0) << r.output;
   std::ifstream f(out);
   const json j = json::parse(f, nullptr, false);
-  ASSERT_EQ(j["sizes"].size(), 2u);  // grey and colour
+  ASSERT_EQ(j["sizes"].size(), 3u);  // grey, colour at one wavelength, colour at three
+  EXPECT_EQ(j["sizes"][2]["wavelengths"], 3);
   for (const auto& e : j["sizes"]) {
     EXPECT_GT(e["fps"].get<double>(), 0);
     EXPECT_GT(e["speedup_vs_wave_same_device"].get<double>(), 0);
