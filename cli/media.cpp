@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <functional>
 #include <system_error>
 
 #include "log.hpp"
@@ -248,13 +249,19 @@ void VideoWriter::finish() {
   log_info("wrote " + path_.string() + " (" + std::to_string(frames_) + " frames)");
 }
 
-std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir) {
+std::vector<std::filesystem::path> list_files(
+    const std::filesystem::path& dir,
+    const std::function<bool(const std::filesystem::path&)>& keep) {
   std::vector<std::filesystem::path> out;
   for (const auto& e : std::filesystem::directory_iterator(dir)) {
-    if (e.is_regular_file() && is_image_path(e.path())) out.push_back(e.path());
+    if (e.is_regular_file() && keep(e.path())) out.push_back(e.path());
   }
   std::sort(out.begin(), out.end());
   return out;
+}
+
+std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir) {
+  return list_files(dir, [](const std::filesystem::path& p) { return is_image_path(p); });
 }
 
 }  // namespace vkjr2::cli

@@ -60,6 +60,10 @@ class VideoWriter {
   bool finished_ = false;
 };
 
+// The regular files directly inside `dir` that `keep` accepts, sorted by name.
+std::vector<std::filesystem::path> list_files(
+    const std::filesystem::path& dir,
+    const std::function<bool(const std::filesystem::path&)>& keep);
 // Images directly inside `dir`, sorted by name.
 std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir);
 

@@ -223,13 +223,7 @@ json simulate_one(const Device& device,
 
 // The image and video files directly in `dir`, sorted by name.
 std::vector<fs::path> list_media(const fs::path& dir) {
-  std::vector<fs::path> files;
-  for (const auto& e : fs::directory_iterator(dir)) {
-    if (e.is_regular_file() && (is_image_path(e.path()) || is_video_path(e.path())))
-      files.push_back(e.path());
-  }
-  std::sort(files.begin(), files.end());
-  return files;
+  return list_files(dir, [](const fs::path& p) { return is_image_path(p) || is_video_path(p); });
 }
 
 void run_simulate(const SimArgs& a) {
