@@ -21,8 +21,10 @@ struct ConvPush {
   std::uint32_t hp, wp;
   std::uint32_t wblocks;
   std::uint32_t cin_g, cout_g;
+  std::uint32_t has_res;
+  std::uint32_t cres;
 };
-static_assert(sizeof(ConvPush) == 24 * 4 && sizeof(ConvPush) <= 128);
+static_assert(sizeof(ConvPush) == 26 * 4 && sizeof(ConvPush) <= 128);
 
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
@@ -31,22 +33,22 @@ constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/
 constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
 constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
 
-const KernelDef kDirect{
-    "conv2d_direct",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
-const KernelDef kBlocked{
-    "conv2d_blocked",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
-const KernelDef kPointwise{
-    "conv2d_pointwise",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
-const KernelDef kDepthwise{
-    "conv2d_depthwise",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
+const KernelDef kDirect{"conv2d_direct",
+                        {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                         BindingKind::storage, BindingKind::texel},
+                        sizeof(ConvPush)};
+const KernelDef kBlocked{"conv2d_blocked",
+                         {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                          BindingKind::storage, BindingKind::texel},
+                         sizeof(ConvPush)};
+const KernelDef kPointwise{"conv2d_pointwise",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                            BindingKind::storage, BindingKind::texel},
+                           sizeof(ConvPush)};
+const KernelDef kDepthwise{"conv2d_depthwise",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                            BindingKind::storage, BindingKind::texel},
+                           sizeof(ConvPush)};
 const KernelDef kPad{"conv2d_pad", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
 const KernelDef kPack{"conv2d_pack", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
 const KernelDef kBwdData{"conv2d_bwd_data",
@@ -248,17 +250,21 @@ Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
 
 // The forward dispatch of one variant; c has everything but the padded geometry.
 // prepacked: the weight already packed (conv2d_pack_weight), else packed here.
+// residual: [N, cres, Hout, Wout] added before the activation, or nullptr.
 void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
                  const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight,
-                 const Tensor* prepacked = nullptr) {
+                 const Tensor* prepacked = nullptr, const Tensor* residual = nullptr) {
   const DeviceInfo& info = stream.device().info();
   const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
   c.has_bias = bias != nullptr ? 1u : 0u;
+  const Tensor& r = residual != nullptr ? *residual : weight;  // unused when has_res == 0
+  c.has_res = residual != nullptr ? 1u : 0u;
+  c.cres = residual != nullptr ? std::uint32_t(residual->shape()[1]) : 0u;
   switch (algo) {
     case Conv2dAlgo::auto_select:
     case Conv2dAlgo::direct: {
       const std::uint64_t n = std::uint64_t(c.n) * c.cout * c.hout * c.wout;
-      stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y)}, c,
+      stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y), texel(r)}, c,
                       groups_1d(div_up(n, 256), info));
       return;
     }
@@ -270,7 +276,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
       stream.dispatch(kPointwise,
                       {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y), texel(r)},
                       c, g, {vec4 ? 1u : 0u});
       return;
     }
@@ -286,7 +292,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       g.z = c.n;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y), texel(r)},
                       c, g, {c.kh, c.kw, c.sx, c.dx, px});
       return;
     }
@@ -294,9 +300,10 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       set_padded(c);
       const Tensor xp = pad_input(stream, x, c);
       const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup), c.cout, c.n};
-      stream.dispatch(kDepthwise,
-                      {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(y)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx});
+      stream.dispatch(
+          kDepthwise,
+          {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(y), texel(r)}, c,
+          g, {c.kh, c.kw, c.sx, c.dx});
       return;
     }
   }
@@ -368,7 +375,8 @@ Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight) {
 }
 
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed) {
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed,
+            const Tensor* residual) {
   const char* op = "conv2d";
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(weight, 4, op, "weight");
@@ -378,6 +386,17 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
   if (bias != nullptr) {
     require_f32(*bias, op, "bias");
     require_shape(*bias, Shape{d.cout}, op, "bias");
+  }
+  if (residual != nullptr) {
+    require_f32_rank(*residual, 4, op, "residual");
+    const Shape& rs = residual->shape();
+    if (rs[0] != d.n || rs[1] < 1 || rs[1] > d.cout || rs[2] != d.hout || rs[3] != d.wout) {
+      throw InvalidArgument(op,
+                            "residual " + rs.str() + " must be [N, C, Hout, Wout] = [" + str(d.n) +
+                                ", 1.." + str(d.cout) + ", " + str(d.hout) + ", " + str(d.wout) +
+                                "] (y " + y.shape().str() + ")",
+                            "pass a residual with y's batch and size and at most y's channels");
+    }
   }
   if (packed != nullptr && packed->defined() && !(packed->weight_shape == weight.shape())) {
     throw InvalidArgument(op,
@@ -389,7 +408,7 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
   const Tensor* prepacked =
       packed != nullptr && packed->defined() && conv2d_uses_packed_weight(algo) ? &packed->packed
                                                                                 : nullptr;
-  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false, prepacked);
+  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false, prepacked, residual);
 }
 
 void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,

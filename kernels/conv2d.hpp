@@ -15,7 +15,10 @@
 // y[n,co,oy,ox] = act(bias[co] + Σ_{ci∈group(co), ky, kx}
 //                 w[co,ci,ky,kx] · x[n, g·Cin/groups + ci, oy·sy − pad_top + ky·dy,
 //                                                          ox·sx − pad_left + kx·dx])
-// with zeros outside the image. act: none, ReLU, LeakyReLU(slope) after the bias.
+// with zeros outside the image. act: none, ReLU, LeakyReLU(slope) after the bias
+// and, when given, the residual r [N, Cr, Hout, Wout] (Cr <= Cout; channels
+// co >= Cr get none, as a shortcut zero-padded in channels would give):
+//   y[n,co,oy,ox] = act(conv + bias[co] + r[n,co,oy,ox]).
 //
 // Backward: the backward kernels assume NO activation. With a fused activation
 // the caller applies the activation's backward to dY first (using the forward
@@ -102,11 +105,16 @@ Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight);
 // Whether `algo` reads packed weights (blocked, pointwise).
 bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept;
 
-// y = act(conv(x, weight) + bias). bias may be nullptr. packed: weight packed
-// by conv2d_pack_weight (used when the selected variant reads packed weights;
-// its shape must be weight's), or nullptr to pack on this call.
+// y = act(conv(x, weight) + bias + residual). bias may be nullptr. packed:
+// weight packed by conv2d_pack_weight (used when the selected variant reads
+// packed weights; its shape must be weight's), or nullptr to pack on this
+// call. residual: [N, Cr, Hout, Wout] with 1 <= Cr <= Cout, a tensor other
+// than y, or nullptr (every variant takes it: a residual block's add and
+// ReLU in the conv's epilogue). Its gradient is the pre-activation dy
+// (channels < Cr).
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr);
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr,
+            const Tensor* residual = nullptr);
 
 // dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
 // shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces

@@ -180,17 +180,27 @@ class FaceRecognitionNet::ConvLayer : public Module {
     kernel_ = kernel;
   }
 
-  Var forward(Tape& t, const Var& x, bool with_relu) const {
+  // Whether forward() folds the scale layer (no parameter needs a gradient):
+  // only then can it take a residual.
+  bool folds(const Tape& t) const { return !t.needs_grad({&filters_, &bias_, &scale_, &shift_}); }
+
+  // act(scale(conv(x)) + residual); residual (folded only, see folds()):
+  // [N, Cr <= Cout, Hout, Wout], added in the conv's epilogue.
+  Var forward(Tape& t, const Var& x, bool with_relu, const Var& residual = Var()) const {
     k::Conv2dParams p;
     if (down_) {  // convDown: stride 2, 'valid'
       p.stride_y = p.stride_x = 2;
     } else {  // conv / convNoRelu: stride 1, 'same'
       p.pad = k::same_padding(x.shape()[2], x.shape()[3], kernel_, kernel_, 1, 1);
     }
-    if (!t.needs_grad({&filters_, &bias_, &scale_, &shift_})) {
+    if (folds(t)) {
       fold(t.stream());
       p.activation = with_relu ? k::Activation::relu : k::Activation::none;
-      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_);
+      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_, residual);
+    }
+    if (residual.defined()) {
+      throw Error("FaceRecognitionNet", "a residual passed to an unfolded conv layer",
+                  "add the residual after the scale layer (see ConvLayer::folds)");
     }
     Var y = conv2d(t, x, filters_, bias_, p);
     y = channel_affine(t, y, scale_, shift_);
@@ -239,13 +249,24 @@ class FaceRecognitionNet::Residual : public Module {
         "conv2", std::make_unique<ConvLayer>(device, r, name + "/conv2", 3, cout, cout, false));
   }
 
+  // relu(conv2(conv1(x)) + shortcut). When conv2 folds its scale layer the
+  // add and the ReLU run in its epilogue; the down blocks' shortcut (x
+  // average-pooled, its channels zero-padded) goes in without the zero
+  // channels (the conv adds none past the residual's channels), unless the
+  // branch needs the zero row and column (3×3 vs 4×4, 1×1 vs 2×2).
   Var forward(Tape& t, const Var& x) const {
     Var out = conv1_->forward(t, x, true);
-    out = conv2_->forward(t, out, false);
-    if (!down_) return relu(t, add(t, out, x));
-
+    const bool fuse = conv2_->folds(t);
+    if (!down_) {
+      if (fuse) return conv2_->forward(t, out, true, x);
+      return relu(t, add(t, conv2_->forward(t, out, false), x));
+    }
     Var pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
     const Shape& ps = pooled.shape();
+    if (fuse && ps[2] == out.shape()[2] && ps[3] == out.shape()[3] && ps[1] <= out.shape()[1]) {
+      return conv2_->forward(t, out, true, pooled);
+    }
+    out = conv2_->forward(t, out, false);
     if (ps[2] != out.shape()[2] || ps[3] != out.shape()[3]) {
       // One zero row at the bottom, then one zero column at the right.
       out = pad(t, out, k::Pad2d{0, 1, 0, 1}, 0.f);

@@ -11,6 +11,7 @@
 // outputs per invocation. Measured on lavapipe (3×3 64→64 128²): scalar input
 // reads 3.5–4 GFLOP/s, vec4 input reads 12–17; weights through a 64 KiB UBO
 // (chunked dispatches) were slower than through this texel buffer.
+#define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
 layout(local_size_x = 64) in;
@@ -72,13 +73,18 @@ void main() {
     b[j] = (pc.has_bias != 0u && co < pc.cout) ? texelFetch(bias, int(co)).r : 0.0;
   }
   const uint hw = pc.hout * pc.wout;
-  const uint obase = (n * pc.cout + cob * 8u) * hw + oy * pc.wout + ox0;
+  const uint pix0 = oy * pc.wout + ox0;
+  const uint obase = (n * pc.cout + cob * 8u) * hw + pix0;
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
     if (ox0 + p < pc.wout) {
       [[unroll]] for (uint j = 0u; j < 4u; ++j) {
-        if (cob * 8u + j < pc.cout) y[obase + j * hw + p] = conv_act(a0[p][j] + b[j]);
-        if (cob * 8u + 4u + j < pc.cout) {
-          y[obase + (4u + j) * hw + p] = conv_act(a1[p][j] + b[4u + j]);
+        const uint c0 = cob * 8u + j, c1 = c0 + 4u;
+        if (c0 < pc.cout) {
+          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual(n, c0, pix0 + p));
+        }
+        if (c1 < pc.cout) {
+          y[obase + (4u + j) * hw + p] =
+              conv_act(a1[p][j] + b[4u + j] + conv_residual(n, c1, pix0 + p));
         }
       }
     }

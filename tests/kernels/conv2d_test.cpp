@@ -165,9 +165,17 @@ void check_forward(const Case& c, std::uint32_t seed) {
   const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
   const auto want = ref::conv2d(xs, wv, bv, c.d, c.p);
   const auto want_nobias = ref::conv2d(xs, wv, {}, c.d, c.p);
+  // A residual with all of y's channels or (every other case) fewer: the channels
+  // past it get none, as in a shortcut zero-padded in channels.
+  const std::int64_t cres = (seed / 10) % 2 == 0 ? c.d.cout : (c.d.cout + 1) / 2;
+  Shape rs = y_shape(c);
+  rs = Shape{rs[0], cres, rs[2], rs[3]};
+  const auto rv = test::random_floats(std::size_t(rs.numel()), seed + 4);
+  const auto want_res = ref::conv2d(xs, wv, bv, c.d, c.p, rv, cres);
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
   Tensor w = Tensor::from(dev, ws, wv);
   Tensor b = Tensor::from(dev, {c.d.cout}, bv);
+  Tensor r = Tensor::from(dev, rs, rv);
   EXPECT_EQ(kernels::conv2d_output_shape(x.shape(), w.shape(), c.p), y_shape(c));
   for (Conv2dAlgo a : runnable(dev, c)) {
     Conv2dParams p = c.p;
@@ -175,18 +183,23 @@ void check_forward(const Case& c, std::uint32_t seed) {
     Tensor y = Tensor::empty(dev, y_shape(c));
     Tensor y2 = Tensor::empty(dev, y_shape(c));
     Tensor y3 = Tensor::empty(dev, y_shape(c));
+    Tensor y4 = Tensor::empty(dev, y_shape(c));
     Stream s(dev);
     kernels::conv2d(s, x, w, &b, y, p);
     kernels::conv2d(s, x, w, nullptr, y2, p);
     // Weights packed once, ahead of the call (what models do at load).
     const kernels::Conv2dPackedWeight packed = kernels::conv2d_pack_weight(s, w);
     kernels::conv2d(s, x, w, &b, y3, p, &packed);
+    kernels::conv2d(s, x, w, &b, y4, p, &packed, &r);
     s.run();
     expect_close(y.download(), want, std::string("forward ") + kernels::conv2d_algo_name(a));
     expect_close(y2.download(), want_nobias,
                  std::string("forward without bias ") + kernels::conv2d_algo_name(a));
     expect_close(y3.download(), want,
                  std::string("forward, packed weight ") + kernels::conv2d_algo_name(a));
+    expect_close(y4.download(), want_res,
+                 std::string("forward with a residual of ") + std::to_string(cres) + " channels " +
+                     kernels::conv2d_algo_name(a));
   }
 }
 
@@ -369,6 +382,10 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, forced); }, "pointwise");
   Tensor big_w = Tensor::empty(dev, {8, 4, 11, 11});
   expect_message([&] { kernels::conv2d_output_shape(x.shape(), big_w.shape(), p); }, "exceeds");
+  Tensor res_wide = Tensor::empty(dev, {1, 9, 6, 6});
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_wide); }, "residual");
+  Tensor res_small = Tensor::empty(dev, {1, 8, 5, 6});
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_small); }, "residual");
   Tensor dy_bad = Tensor::empty(dev, {1, 8, 5, 6});
   expect_message([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
   expect_message([&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");
