@@ -116,6 +116,34 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
             const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr,
             const Tensor* residual = nullptr);
 
+// The zero-padded copy of an input that the blocked variant reads: planes of
+// hp × wp (wp % 4 == 0) with x at (top, left), zeros around. A producer that
+// writes its output straight into it (conv2d_into_padded) saves the consumer
+// its padding pass (conv2d_from_padded reads it).
+struct Conv2dPadded {
+  Tensor data;  // [N·C·hp·wp]
+  Shape shape;  // x's [N, C, H, W]
+  std::uint32_t hp = 0, wp = 0;
+  std::int32_t top = 0, left = 0;
+  bool defined() const noexcept { return data.defined(); }
+};
+// For conv2d(x of shape x, weight, p): its padded input, zero-filled on
+// `stream`, when the selected variant is blocked; else undefined (no data).
+Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& weight,
+                                 const Conv2dParams& p);
+// conv2d with y written into the interior of y (conv2d_padded_input of y's
+// consumer; y.shape is conv2d's output shape). Blocked variant only.
+void conv2d_into_padded(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
+                        const Conv2dPadded& y, const Conv2dParams& p,
+                        const Conv2dPackedWeight* packed = nullptr,
+                        const Tensor* residual = nullptr);
+// conv2d of the input whose padded copy x is (conv2d_padded_input for these
+// shapes and p, filled): no padding pass.
+void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& weight,
+                        const Tensor* bias, const Tensor& y, const Conv2dParams& p,
+                        const Conv2dPackedWeight* packed = nullptr,
+                        const Tensor* residual = nullptr);
+
 // dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
 // shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces
 // the gather kernel); blocked forces the transposed-forward path.

@@ -187,17 +187,12 @@ class FaceRecognitionNet::ConvLayer : public Module {
   // act(scale(conv(x)) + residual); residual (folded only, see folds()):
   // [N, Cr <= Cout, Hout, Wout], added in the conv's epilogue.
   Var forward(Tape& t, const Var& x, bool with_relu, const Var& residual = Var()) const {
-    k::Conv2dParams p;
-    if (down_) {  // convDown: stride 2, 'valid'
-      p.stride_y = p.stride_x = 2;
-    } else {  // conv / convNoRelu: stride 1, 'same'
-      p.pad = k::same_padding(x.shape()[2], x.shape()[3], kernel_, kernel_, 1, 1);
-    }
+    k::Conv2dParams p = params(x.shape(), with_relu);
     if (folds(t)) {
       fold(t.stream());
-      p.activation = with_relu ? k::Activation::relu : k::Activation::none;
       return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_, residual);
     }
+    p.activation = k::Activation::none;
     if (residual.defined()) {
       throw Error("FaceRecognitionNet", "a residual passed to an unfolded conv layer",
                   "add the residual after the scale layer (see ConvLayer::folds)");
@@ -205,6 +200,41 @@ class FaceRecognitionNet::ConvLayer : public Module {
     Var y = conv2d(t, x, filters_, bias_, p);
     y = channel_affine(t, y, scale_, shift_);
     return with_relu ? relu(t, y) : y;
+  }
+
+  // The conv's parameters for input x (activation: the folded form's).
+  k::Conv2dParams params(const Shape& x, bool with_relu) const {
+    k::Conv2dParams p;
+    if (down_) {  // convDown: stride 2, 'valid'
+      p.stride_y = p.stride_x = 2;
+    } else {  // conv / convNoRelu: stride 1, 'same'
+      p.pad = k::same_padding(x[2], x[3], kernel_, kernel_, 1, 1);
+    }
+    p.activation = with_relu ? k::Activation::relu : k::Activation::none;
+    return p;
+  }
+  Shape weight_shape() const { return filters_.shape(); }
+
+  // Inference only (folds(t) and no gradient to x): the folded conv written
+  // into `into` (the zero-padded input of the next conv), or read from `from`.
+  void forward_into(Tape& t, const Var& x, bool with_relu, const k::Conv2dPadded& into) const {
+    fold(t.stream());
+    const Tensor& b = folded_bias_.value();
+    k::conv2d_into_padded(t.stream(), x.value(), folded_filters_.value(), &b, into,
+                          params(x.shape(), with_relu),
+                          &folded_packed_.get(t.stream(), folded_filters_));
+  }
+  Var forward_from(Tape& t, const k::Conv2dPadded& from, bool with_relu,
+                   const Var& residual) const {
+    fold(t.stream());
+    const k::Conv2dParams p = params(from.shape, with_relu);
+    const Tensor& b = folded_bias_.value();
+    Tensor y =
+        Tensor::empty(t.stream().device(), k::conv2d_output_shape(from.shape, filters_.shape(), p));
+    const Tensor* r = residual.defined() ? &residual.value() : nullptr;
+    k::conv2d_from_padded(t.stream(), from, folded_filters_.value(), &b, y, p,
+                          &folded_packed_.get(t.stream(), folded_filters_), r);
+    return t.output(y, false);
   }
 
   // Records the folding and packing on `stream` unless the folded weights are
@@ -254,18 +284,33 @@ class FaceRecognitionNet::Residual : public Module {
   // average-pooled, its channels zero-padded) goes in without the zero
   // channels (the conv adds none past the residual's channels), unless the
   // branch needs the zero row and column (3×3 vs 4×4, 1×1 vs 2×2).
+  //
+  // Inference (nothing needs a gradient): conv1 writes its output straight
+  // into the zero-padded input conv2 reads, saving conv2 its padding pass.
   Var forward(Tape& t, const Var& x) const {
-    Var out = conv1_->forward(t, x, true);
     const bool fuse = conv2_->folds(t);
+    Var pooled;
+    if (down_) pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
+    const Shape mid =
+        k::conv2d_output_shape(x.shape(), conv1_->weight_shape(), conv1_->params(x.shape(), true));
+    const bool shortcut_fits =
+        !down_ ||
+        (pooled.shape()[2] == mid[2] && pooled.shape()[3] == mid[3] && pooled.shape()[1] <= mid[1]);
+    if (fuse && shortcut_fits && conv1_->folds(t) && !t.needs_grad({&x})) {
+      const k::Conv2dPadded into = k::conv2d_padded_input(t.stream(), mid, conv2_->weight_shape(),
+                                                          conv2_->params(mid, true));
+      if (into.defined()) {
+        conv1_->forward_into(t, x, true, into);
+        return conv2_->forward_from(t, into, true, down_ ? pooled : x);
+      }
+    }
+    Var out = conv1_->forward(t, x, true);
     if (!down_) {
       if (fuse) return conv2_->forward(t, out, true, x);
       return relu(t, add(t, conv2_->forward(t, out, false), x));
     }
-    Var pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
     const Shape& ps = pooled.shape();
-    if (fuse && ps[2] == out.shape()[2] && ps[3] == out.shape()[3] && ps[1] <= out.shape()[1]) {
-      return conv2_->forward(t, out, true, pooled);
-    }
+    if (fuse && shortcut_fits) return conv2_->forward(t, out, true, pooled);
     out = conv2_->forward(t, out, false);
     if (ps[2] != out.shape()[2] || ps[3] != out.shape()[3]) {
       // One zero row at the bottom, then one zero column at the right.

@@ -72,11 +72,15 @@ void main() {
     const uint co = cob * 8u + j;
     b[j] = (pc.has_bias != 0u && co < pc.cout) ? texelFetch(bias, int(co)).r : 0.0;
   }
-  const uint hw = pc.hout * pc.wout;
-  const uint pix0 = oy * pc.wout + ox0;
-  const uint obase = (n * pc.cout + cob * 8u) * hw + pix0;
+  // y: planes of yh × yw with the output at (ytop, yleft): hout × wout
+  // itself, or the zero-padded input of the next conv (conv2d_padded_input).
+  const uint hw = pc.yh * pc.yw;
+  const uint pix0 = oy * pc.wout + ox0;  // the residual's pixel
+  const uint obase = (n * pc.cout + cob * 8u) * hw + (oy + pc.ytop) * pc.yw + ox0 + pc.yleft;
+  // A padded y may end before the output does (its consumer reads no further).
+  if (oy + pc.ytop >= pc.yh) return;
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    if (ox0 + p < pc.wout) {
+    if (ox0 + p < pc.wout && ox0 + p + pc.yleft < pc.yw) {
       [[unroll]] for (uint j = 0u; j < 4u; ++j) {
         const uint c0 = cob * 8u + j, c1 = c0 + 4u;
         if (c0 < pc.cout) {

@@ -18,6 +18,8 @@ layout(push_constant) uniform Push {
   uint cin_g, cout_g;         // channels per group
   uint has_res;               // residual added before the activation (forward)
   uint cres;                  // its channels (<= cout; channels past it get none)
+  uint yh, yw;                // y's planes (blocked: hout × wout, or a padded tensor's)
+  uint ytop, yleft;           // where the output sits in them
 } pc;
 
 // The forward shaders that take a residual declare it as binding 4

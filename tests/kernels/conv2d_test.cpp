@@ -250,6 +250,62 @@ TEST(Conv2d, BackwardMatchesReference) {
   for (const Case& c : edge_cases()) check_backward(c, seed + 10 * std::uint32_t(k++));
 }
 
+// A blocked conv writing straight into the zero-padded input of the next
+// one (conv2d_into_padded), which reads it with no padding pass
+// (conv2d_from_padded): the two match the reference chained on the host.
+void check_padded_chain(const Case& c, std::uint32_t seed) {
+  Device& dev = test::device();
+  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+  const Shape ys = y_shape(c);
+  ref::Conv2dDims d2{ys[0], ys[1], ys[2], ys[3], std::int64_t(uni(1, 20)), 3, 3};
+  Conv2dParams p2;
+  p2.stride_y = uni(1, 2);
+  p2.stride_x = uni(1, 2);
+  p2.pad = {uni(0, 2), uni(0, 2), uni(0, 2), uni(0, 2)};
+  p2.activation = Activation::relu;
+  const Case c2{d2, p2};
+  if (!valid(c2)) return;
+  Conv2dParams p1 = c.p;
+  p1.algo = Conv2dAlgo::blocked;
+  const Shape ws = w_shape(c.d, 1), ws2 = w_shape(d2, 1);
+  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
+  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
+  const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
+  const auto wv2 = test::random_floats(std::size_t(ws2.numel()), seed + 3);
+  const auto rv = test::random_floats(std::size_t(y_shape(c2).numel()), seed + 4);
+  const auto mid = ref::conv2d(xs, wv, bv, c.d, c.p);
+  const auto want = ref::conv2d(mid, wv2, {}, d2, p2, rv, d2.cout);
+  Stream s(dev);
+  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, ys, ws2, p2);
+  if (!xp.defined()) {  // 1 input channel: the consumer runs depthwise, reading x unpadded
+    EXPECT_NE(kernels::conv2d_select(dev.info(), ys, ws2, p2), Conv2dAlgo::blocked);
+    return;
+  }
+  Tensor x = Tensor::from(dev, x_shape(c.d), xs);
+  Tensor w = Tensor::from(dev, ws, wv);
+  Tensor b = Tensor::from(dev, {c.d.cout}, bv);
+  Tensor w2 = Tensor::from(dev, ws2, wv2);
+  Tensor r = Tensor::from(dev, y_shape(c2), rv);
+  Tensor y = Tensor::empty(dev, y_shape(c2));
+  kernels::conv2d_into_padded(s, x, w, &b, xp, p1);
+  kernels::conv2d_from_padded(s, xp, w2, nullptr, y, p2, nullptr, &r);
+  s.run();
+  expect_close(y.download(), want, "conv into padded, conv from padded");
+}
+
+TEST(Conv2d, ChainsThroughPaddedTensors) {
+  const std::uint32_t seed = 404;
+  int k = 0, checked = 0;
+  for (Case c : random_cases(seed, 40)) {
+    if (c.p.groups != 1 || c.d.kh > 7 || c.d.kw > 7) continue;
+    check_padded_chain(c, seed + 10 * std::uint32_t(k++));
+    ++checked;
+  }
+  EXPECT_GE(checked, 10);
+}
+
 // Central differences of L = Σ g ⊙ conv(x, w, b) against dX, dW, dbias.
 void gradcheck(const Case& c, std::uint32_t seed) {
   Device& dev = test::device();
@@ -386,6 +442,11 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_wide); }, "residual");
   Tensor res_small = Tensor::empty(dev, {1, 8, 5, 6});
   expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_small); }, "residual");
+  Conv2dParams same = p;
+  same.pad = {1, 1, 1, 1};
+  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x.shape(), w.shape(), same);
+  expect_message([&] { kernels::conv2d_from_padded(s, xp, w, nullptr, y, p); }, "padded input");
+  expect_message([&] { kernels::conv2d_into_padded(s, x, w, nullptr, xp, p); }, "padded output");
   Tensor dy_bad = Tensor::empty(dev, {1, 8, 5, 6});
   expect_message([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
   expect_message([&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");
