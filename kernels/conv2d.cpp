@@ -260,13 +260,19 @@ Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
 void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
                  const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight,
                  const Tensor* prepacked = nullptr, const Tensor* residual = nullptr,
-                 const Conv2dPadded* x_padded = nullptr, const Conv2dPadded* y_padded = nullptr) {
+                 const Conv2dPadded* x_padded = nullptr, const Conv2dPadded* y_padded = nullptr,
+                 const Conv2dPadded* residual_padded = nullptr) {
   const DeviceInfo& info = stream.device().info();
   const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
   c.has_bias = bias != nullptr ? 1u : 0u;
-  const Tensor& r = residual != nullptr ? *residual : weight;  // unused when has_res == 0
+  const Tensor& r_plain = residual != nullptr ? *residual : weight;  // unused when has_res == 0
   c.has_res = residual != nullptr ? 1u : 0u;
   c.cres = residual != nullptr ? std::uint32_t(residual->shape()[1]) : 0u;
+  if (residual_padded != nullptr) {  // blocked only: in x's padded layout
+    c.has_res = 2;
+    c.cres = std::uint32_t(residual_padded->shape[1]);
+  }
+  const Tensor& r = residual_padded != nullptr ? residual_padded->data : r_plain;
   switch (algo) {
     case Conv2dAlgo::auto_select:
     case Conv2dAlgo::direct: {
@@ -408,11 +414,12 @@ bool same_layout(const Conv2dPadded& a, const Conv2dPadded& b) {
 }
 
 // conv2d's checks and dispatch. x_padded: x's padded copy (x_shape is then
-// its shape and x unused); y_padded: written instead of y.
+// its shape and x unused); y_padded: written instead of y; residual_padded:
+// read instead of residual.
 void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weight,
              const Tensor* bias, const Tensor* y, const Conv2dParams& p,
              const Conv2dPackedWeight* packed, const Tensor* residual, const Conv2dPadded* x_padded,
-             const Conv2dPadded* y_padded) {
+             const Conv2dPadded* y_padded, const Conv2dPadded* residual_padded = nullptr) {
   const Shape xs = x_padded != nullptr ? x_padded->shape : x.shape();
   if (x_padded == nullptr) require_f32_rank(x, 4, op, "x");
   require_f32_rank(weight, 4, op, "weight");
@@ -444,7 +451,23 @@ void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weig
                           "pack this weight with conv2d_pack_weight (again after it changed)");
   }
   const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
-  if ((x_padded != nullptr || y_padded != nullptr) && algo != Conv2dAlgo::blocked) {
+  if (residual_padded != nullptr) {
+    // In x's padded layout: y must have x's size (a stride-1 'same' conv).
+    const Conv2dPadded want = padded_layout(d, p, xs);
+    const Conv2dPadded& r = *residual_padded;
+    const bool fits = residual == nullptr && r.defined() && r.shape.rank() == 4 &&
+                      r.shape[0] == d.n && r.shape[1] >= 1 && r.shape[1] <= d.cout &&
+                      r.shape[2] == d.h && r.shape[3] == d.w && d.hout == d.h && d.wout == d.w &&
+                      r.hp == want.hp && r.wp == want.wp && r.top == want.top &&
+                      r.left == want.left;
+    if (!fits) {
+      throw InvalidArgument(op, "the padded residual is not in this convolution's input layout",
+                            "pass one residual, padded like x (conv2d_padded_input for x's "
+                            "shape), for a convolution whose output has x's size");
+    }
+  }
+  if ((x_padded != nullptr || y_padded != nullptr || residual_padded != nullptr) &&
+      algo != Conv2dAlgo::blocked) {
     throw InvalidArgument(op,
                           std::string("padded inputs and outputs need the blocked variant, not ") +
                               conv2d_algo_name(algo),
@@ -472,7 +495,7 @@ void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weig
   const Tensor& xt = x_padded != nullptr ? x_padded->data : x;
   const Tensor& yt = y != nullptr ? *y : y_padded->data;
   run_forward(stream, algo, xt, weight, bias, yt, push_of(d, p), false, prepacked, residual,
-              x_padded, y_padded);
+              x_padded, y_padded, residual_padded);
 }
 
 }  // namespace
@@ -499,6 +522,18 @@ void conv2d_into_padded(Stream& stream, const Tensor& x, const Tensor& weight, c
                         const Conv2dPadded& y, const Conv2dParams& p,
                         const Conv2dPackedWeight* packed, const Tensor* residual) {
   forward(stream, "conv2d_into_padded", x, weight, bias, nullptr, p, packed, residual, nullptr, &y);
+}
+
+void conv2d_padded(Stream& stream, const Tensor* x, const Tensor& weight, const Tensor* bias,
+                   const Tensor* y, const Conv2dParams& p, const Conv2dPaddedIo& io,
+                   const Conv2dPackedWeight* packed, const Tensor* residual) {
+  const char* op = "conv2d_padded";
+  if ((x == nullptr) == (io.x == nullptr) || (y == nullptr) == (io.y == nullptr)) {
+    throw InvalidArgument(op, "x and y must each be given once: plain or padded",
+                          "pass either the tensor or its padded form");
+  }
+  const Tensor& xt = x != nullptr ? *x : io.x->data;
+  forward(stream, op, xt, weight, bias, y, p, packed, residual, io.x, io.y, io.residual);
 }
 
 void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& weight,

@@ -144,6 +144,19 @@ void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& wei
                         const Conv2dPackedWeight* packed = nullptr,
                         const Tensor* residual = nullptr);
 
+// The general form: x, y and the residual each plain (the tensor) or padded
+// (io: x read from its padded copy, y written into a padded tensor's
+// interior, the residual read from a tensor in x's padded layout, for a
+// stride-1 'same' convolution whose input is also its shortcut).
+struct Conv2dPaddedIo {
+  const Conv2dPadded* x = nullptr;
+  const Conv2dPadded* y = nullptr;
+  const Conv2dPadded* residual = nullptr;
+};
+void conv2d_padded(Stream& stream, const Tensor* x, const Tensor& weight, const Tensor* bias,
+                   const Tensor* y, const Conv2dParams& p, const Conv2dPaddedIo& io,
+                   const Conv2dPackedWeight* packed = nullptr, const Tensor* residual = nullptr);
+
 // dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
 // shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces
 // the gather kernel); blocked forces the transposed-forward path.

@@ -75,7 +75,6 @@ void main() {
   // y: planes of yh × yw with the output at (ytop, yleft): hout × wout
   // itself, or the zero-padded input of the next conv (conv2d_padded_input).
   const uint hw = pc.yh * pc.yw;
-  const uint pix0 = oy * pc.wout + ox0;  // the residual's pixel
   const uint obase = (n * pc.cout + cob * 8u) * hw + (oy + pc.ytop) * pc.yw + ox0 + pc.yleft;
   // A padded y may end before the output does (its consumer reads no further).
   if (oy + pc.ytop >= pc.yh) return;
@@ -84,11 +83,11 @@ void main() {
       [[unroll]] for (uint j = 0u; j < 4u; ++j) {
         const uint c0 = cob * 8u + j, c1 = c0 + 4u;
         if (c0 < pc.cout) {
-          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual(n, c0, pix0 + p));
+          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual_at(n, c0, oy, ox0 + p));
         }
         if (c1 < pc.cout) {
           y[obase + (4u + j) * hw + p] =
-              conv_act(a1[p][j] + b[4u + j] + conv_residual(n, c1, pix0 + p));
+              conv_act(a1[p][j] + b[4u + j] + conv_residual_at(n, c1, oy, ox0 + p));
         }
       }
     }

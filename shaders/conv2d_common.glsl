@@ -32,6 +32,14 @@ float conv_residual(uint n, uint co, uint pix) {
   if (pc.has_res == 0u || co >= pc.cres) return 0.0;
   return texelFetch(res, int((n * pc.cres + co) * pc.hout * pc.wout + pix)).r;
 }
+// Also has_res == 2 (blocked): the residual in this conv's own padded-input
+// layout (planes hp × wp, at (pt, pl); a stride-1 'same' conv's input).
+float conv_residual_at(uint n, uint co, uint oy, uint ox) {
+  if (pc.has_res != 2u) return conv_residual(n, co, oy * pc.wout + ox);
+  if (co >= pc.cres) return 0.0;
+  const int row = int((n * pc.cres + co) * pc.hp + oy) + pc.pt;
+  return texelFetch(res, row * int(pc.wp) + int(ox) + pc.pl).r;
+}
 #endif
 
 float conv_act(float v) {

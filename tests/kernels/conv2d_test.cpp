@@ -306,6 +306,46 @@ TEST(Conv2d, ChainsThroughPaddedTensors) {
   EXPECT_GE(checked, 10);
 }
 
+// A residual block's second conv reading its input and its shortcut from
+// one padded tensor (a stride-1 'same' conv: the shortcut has the input's
+// layout), the shortcut with fewer channels than y; x, y: 2 images.
+TEST(Conv2d, ResidualInThePaddedInputLayout) {
+  Device& dev = test::device();
+  const ref::Conv2dDims d0{2, 5, 9, 11, 8, 3, 3}, d1{2, 8, 9, 11, 12, 3, 3};
+  Conv2dParams p;
+  p.pad = {1, 1, 1, 1};
+  p.activation = Activation::relu;
+  const auto x0 = test::random_floats(std::size_t(x_shape(d0).numel()), 1);
+  const auto w0 = test::random_floats(std::size_t(w_shape(d0, 1).numel()), 2);
+  const auto w1 = test::random_floats(std::size_t(w_shape(d1, 1).numel()), 3);
+  const auto b1 = test::random_floats(std::size_t(d1.cout), 4);
+  const auto mid = ref::conv2d(x0, w0, {}, d0, p);
+  const auto want = ref::conv2d(mid, w1, b1, d1, p, mid, d1.cin);
+  Stream s(dev);
+  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x_shape(d1), w_shape(d1, 1), p);
+  ASSERT_TRUE(xp.defined());
+  Tensor x = Tensor::from(dev, x_shape(d0), x0);
+  Tensor tw0 = Tensor::from(dev, w_shape(d0, 1), w0);
+  Tensor tw1 = Tensor::from(dev, w_shape(d1, 1), w1);
+  Tensor tb1 = Tensor::from(dev, {d1.cout}, b1);
+  Tensor y = Tensor::empty(dev, {2, 12, 9, 11});
+  kernels::Conv2dPaddedIo io0;
+  io0.y = &xp;
+  kernels::conv2d_padded(s, &x, tw0, nullptr, nullptr, p, io0);
+  kernels::Conv2dPaddedIo io1;
+  io1.x = &xp;
+  io1.residual = &xp;
+  kernels::conv2d_padded(s, nullptr, tw1, &tb1, &y, p, io1);
+  s.run();
+  expect_close(y.download(), want, "residual from the padded input");
+  Conv2dParams strided = p;  // output smaller than x: no shortcut in x's layout
+  strided.stride_y = strided.stride_x = 2;
+  Tensor y2 = Tensor::empty(dev, {2, 12, 5, 6});
+  io1.x = nullptr;
+  Tensor x1 = Tensor::empty(dev, x_shape(d1));
+  EXPECT_THROW(kernels::conv2d_padded(s, &x1, tw1, nullptr, &y2, strided, io1), InvalidArgument);
+}
+
 // Central differences of L = Σ g ⊙ conv(x, w, b) against dX, dW, dbias.
 void gradcheck(const Case& c, std::uint32_t seed) {
   Device& dev = test::device();
