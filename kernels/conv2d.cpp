@@ -156,12 +156,10 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
 
 // Padded-input geometry for the blocked and depthwise kernels: every row read
 // by a block of kPx output pixels lies inside [hp, wp].
-// px: output pixels per invocation (kPx; the blocked kernel also runs 4);
-// ry: output rows per invocation (blocked: 1 or 2; the rows of a last,
-// partial pair are read too).
-void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1) {
+// px: output pixels per invocation (kPx; the blocked kernel also runs 4).
+void set_padded(ConvPush& c, std::uint32_t px = kPx) {
   c.wblocks = (c.wout + px - 1) / px;
-  c.hp = (div_up(c.hout, ry) * ry - 1) * c.sy + (c.kh - 1) * c.dy + 1;
+  c.hp = (c.hout - 1) * c.sy + (c.kh - 1) * c.dy + 1;
   // wp rounded up to 4: rows start 16-byte aligned, read as vec4 texels.
   c.wp = div_up((c.wblocks * px - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
 }
@@ -169,16 +167,6 @@ void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1) {
 // The blocked kernel's pixels per invocation: 4 on images at most 4 wide
 // (half the work of an 8-pixel block there), else 8.
 std::uint32_t blocked_px(std::uint32_t wout) { return wout <= 4 ? 4u : kPx; }
-
-// Its output rows per invocation: 2 (each weight texel then serves twice the
-// pixels) where the (row pair, pixel block, channel block) invocations still
-// fill more than 3 workgroups (llvmpipe runs a workgroup per CPU thread at a
-// time; on these 2-thread machines fewer left threads idle), else 1.
-std::uint32_t blocked_rows(const ConvPush& c) {
-  const std::uint64_t pairs = std::uint64_t(div_up(c.hout, 2u)) *
-                              div_up(c.wout, blocked_px(c.wout)) * div_up(c.cout, kCoBlock) * c.n;
-  return c.hout >= 2 && pairs > 3 * kBlockedGroup ? 2u : 1u;
-}
 
 std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p) {
   ConvPush c = push_of(d, p);
@@ -306,8 +294,8 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::blocked: {
-      const std::uint32_t px = blocked_px(c.wout), ry = blocked_rows(c);
-      set_padded(c, px, ry);
+      const std::uint32_t px = blocked_px(c.wout);
+      set_padded(c, px);
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
@@ -318,15 +306,14 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
         c.yleft = std::uint32_t(y_padded->left);
       }
       const Tensor& yt = y_padded != nullptr ? y_padded->data : y;
-      // (row block, pixel block, channel block), flattened (the shader splits them).
-      const std::uint64_t blocks =
-          std::uint64_t(div_up(c.hout, ry)) * c.wblocks * div_up(c.cout, kCoBlock);
+      // (pixel block, channel block) pairs, flattened (the shader splits them).
+      const std::uint64_t blocks = std::uint64_t(c.hout) * c.wblocks * div_up(c.cout, kCoBlock);
       Groups g = groups_1d(div_up(blocks, kBlockedGroup), info);
       g.z = c.n;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx, px, ry});
+                      c, g, {c.kh, c.kw, c.sx, c.dx, px});
       return;
     }
     case Conv2dAlgo::depthwise: {
@@ -412,7 +399,7 @@ namespace {
 // The padded input geometry the blocked kernel reads for these shapes.
 Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x) {
   ConvPush c = push_of(d, p);
-  set_padded(c, blocked_px(c.wout), blocked_rows(c));
+  set_padded(c, blocked_px(c.wout));
   Conv2dPadded l;
   l.shape = x;
   l.hp = c.hp;

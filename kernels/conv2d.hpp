@@ -28,8 +28,7 @@
 // Variants (chosen in one place, conv2d_select(); all tested):
 //   direct     any parameters; one output per invocation (slow fallback).
 //   blocked    groups == 1, KH, KW <= 7, stride_x, dilation_x <= 4: 8 output
-//              channels × 8 output pixels (× 2 rows on large enough outputs)
-//              per invocation; the input is
+//              channels × 8 output pixels per invocation; the input is
 //              zero-padded into a temporary (one cheap pass) and read as vec4
 //              texels, weights packed to [Cout/8][Cin][KH][KW][8] (per call,
 //              or once with conv2d_pack_weight) and read as vec4 texels; KH/KW/stride_x/

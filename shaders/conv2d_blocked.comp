@@ -1,8 +1,7 @@
 #version 450
 // conv2d forward, groups == 1: each invocation computes 8 output channels × PX
-// (8, or 4 on images at most 4 wide) consecutive output pixels of RY (1 or 2)
-// rows (2·PX·RY vec4 accumulators). 3×3 64→64 128², GFLOP per CPU-second
-// (the machine was shared): RY = 2 21.9–22.8, RY = 1 18.1–21.0. Invocations run over (pixel block, channel block)
+// (8, or 4 on images at most 4 wide) consecutive output pixels of one row
+// (2·PX vec4 accumulators). Invocations run over (pixel block, channel block)
 // flattened, so small images with many channels still fill whole workgroups
 // (llvmpipe runs 8 lanes at a time and pays per workgroup). The input is
 // the zero-padded copy from conv2d_pad (no bounds checks in the loop); one row
@@ -21,10 +20,6 @@ layout(constant_id = 1) const uint KW = 3u;
 layout(constant_id = 2) const uint SX = 1u;
 layout(constant_id = 3) const uint DX = 1u;
 layout(constant_id = 4) const uint PX = 8u;
-// Output rows per invocation (1 or 2): with 2, each weight texel serves twice
-// the pixels (fewer fetches per FMA); the host picks 2 where enough
-// invocations remain to fill the CPU threads.
-layout(constant_id = 5) const uint RY = 1u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;  // input columns one row needs
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
 
@@ -34,43 +29,37 @@ layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
 
 void main() {
-  const uint npb = (pc.hout + RY - 1u) / RY * pc.wblocks;  // (row block, pixel block) pairs
+  const uint npb = pc.hout * pc.wblocks;
   const uint idx = linear_group() * 64u + gl_LocalInvocationID.x;
   const uint cob = idx / npb;
   if (cob >= (pc.cout + 7u) / 8u) return;
   const uint pb = idx - cob * npb;
   const uint n = gl_WorkGroupID.z;
-  const uint oy0 = pb / pc.wblocks * RY;
+  const uint oy = pb / pc.wblocks;
   const uint ox0 = (pb % pc.wblocks) * PX;
 
-  vec4 a0[RY * PX], a1[RY * PX];
-  [[unroll]] for (uint p = 0u; p < RY * PX; ++p) {
+  vec4 a0[PX], a1[PX];
+  [[unroll]] for (uint p = 0u; p < PX; ++p) {
     a0[p] = vec4(0.0);
     a1[p] = vec4(0.0);
   }
   const int plane = int(pc.hp * pc.wp / 4u);
-  const int row_step = int(pc.dy * pc.wp / 4u);  // between taps ky
-  const int out_row_step = int(pc.sy * pc.wp / 4u);  // between output rows
-  int xbase = int((((n * pc.cin) * pc.hp + oy0 * pc.sy) * pc.wp + ox0 * SX) / 4u);
+  const int row_step = int(pc.dy * pc.wp / 4u);
+  int xbase = int((((n * pc.cin) * pc.hp + oy * pc.sy) * pc.wp + ox0 * SX) / 4u);
   int wbase = int(cob * pc.cin * KH * KW * 2u);
   for (uint c = 0u; c < pc.cin; ++c) {
     [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-      vec4 r[RY * SEG4];
-      [[unroll]] for (uint q = 0u; q < RY; ++q) {
-        const int rb = xbase + int(ky) * row_step + int(q) * out_row_step;
-        [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[q * SEG4 + j] = texelFetch(xp, rb + int(j));
-      }
+      const int rb = xbase + int(ky) * row_step;
+      vec4 r[SEG4];
+      [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = texelFetch(xp, rb + int(j));
       [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
         const int wi = wbase + int((ky * KW + kx) * 2u);
         const vec4 w0 = texelFetch(packed, wi);
         const vec4 w1 = texelFetch(packed, wi + 1);
-        [[unroll]] for (uint q = 0u; q < RY; ++q) {
-          [[unroll]] for (uint p = 0u; p < PX; ++p) {
-            const uint k = p * SX + kx * DX;
-            const float v = r[q * SEG4 + k / 4u][k % 4u];
-            a0[q * PX + p] = fma(vec4(v), w0, a0[q * PX + p]);
-            a1[q * PX + p] = fma(vec4(v), w1, a1[q * PX + p]);
-          }
+        [[unroll]] for (uint p = 0u; p < PX; ++p) {
+          const float v = r[(p * SX + kx * DX) / 4u][(p * SX + kx * DX) % 4u];
+          a0[p] = fma(vec4(v), w0, a0[p]);
+          a1[p] = fma(vec4(v), w1, a1[p]);
         }
       }
     }
@@ -86,24 +75,19 @@ void main() {
   // y: planes of yh × yw with the output at (ytop, yleft): hout × wout
   // itself, or the zero-padded input of the next conv (conv2d_padded_input).
   const uint hw = pc.yh * pc.yw;
-  [[unroll]] for (uint q = 0u; q < RY; ++q) {
-    const uint oy = oy0 + q;
-    // A padded y may end before the output does (its consumer reads no further).
-    if (oy < pc.hout && oy + pc.ytop < pc.yh) {
-      const uint obase = (n * pc.cout + cob * 8u) * hw + (oy + pc.ytop) * pc.yw + ox0 + pc.yleft;
-      [[unroll]] for (uint p = 0u; p < PX; ++p) {
-        if (ox0 + p < pc.wout && ox0 + p + pc.yleft < pc.yw) {
-          [[unroll]] for (uint j = 0u; j < 4u; ++j) {
-            const uint c0 = cob * 8u + j, c1 = c0 + 4u;
-            if (c0 < pc.cout) {
-              y[obase + j * hw + p] =
-                  conv_act(a0[q * PX + p][j] + b[j] + conv_residual_at(n, c0, oy, ox0 + p));
-            }
-            if (c1 < pc.cout) {
-              y[obase + (4u + j) * hw + p] =
-                  conv_act(a1[q * PX + p][j] + b[4u + j] + conv_residual_at(n, c1, oy, ox0 + p));
-            }
-          }
+  const uint obase = (n * pc.cout + cob * 8u) * hw + (oy + pc.ytop) * pc.yw + ox0 + pc.yleft;
+  // A padded y may end before the output does (its consumer reads no further).
+  if (oy + pc.ytop >= pc.yh) return;
+  [[unroll]] for (uint p = 0u; p < PX; ++p) {
+    if (ox0 + p < pc.wout && ox0 + p + pc.yleft < pc.yw) {
+      [[unroll]] for (uint j = 0u; j < 4u; ++j) {
+        const uint c0 = cob * 8u + j, c1 = c0 + 4u;
+        if (c0 < pc.cout) {
+          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual_at(n, c0, oy, ox0 + p));
+        }
+        if (c1 < pc.cout) {
+          y[obase + (4u + j) * hw + p] =
+              conv_act(a1[p][j] + b[4u + j] + conv_residual_at(n, c1, oy, ox0 + p));
         }
       }
     }
