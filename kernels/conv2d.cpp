@@ -21,8 +21,12 @@ struct ConvPush {
   std::uint32_t hp, wp;
   std::uint32_t wblocks;
   std::uint32_t cin_g, cout_g;
+  std::uint32_t has_res;
+  std::uint32_t cres;
+  std::uint32_t yh, yw;
+  std::uint32_t ytop, yleft;
 };
-static_assert(sizeof(ConvPush) == 24 * 4 && sizeof(ConvPush) <= 128);
+static_assert(sizeof(ConvPush) == 30 * 4 && sizeof(ConvPush) <= 128);
 
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
@@ -31,22 +35,22 @@ constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/
 constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
 constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
 
-const KernelDef kDirect{
-    "conv2d_direct",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
-const KernelDef kBlocked{
-    "conv2d_blocked",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
-const KernelDef kPointwise{
-    "conv2d_pointwise",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
-const KernelDef kDepthwise{
-    "conv2d_depthwise",
-    {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-    sizeof(ConvPush)};
+const KernelDef kDirect{"conv2d_direct",
+                        {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                         BindingKind::storage, BindingKind::texel},
+                        sizeof(ConvPush)};
+const KernelDef kBlocked{"conv2d_blocked",
+                         {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                          BindingKind::storage, BindingKind::texel},
+                         sizeof(ConvPush)};
+const KernelDef kPointwise{"conv2d_pointwise",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                            BindingKind::storage, BindingKind::texel},
+                           sizeof(ConvPush)};
+const KernelDef kDepthwise{"conv2d_depthwise",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                            BindingKind::storage, BindingKind::texel},
+                           sizeof(ConvPush)};
 const KernelDef kPad{"conv2d_pad", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
 const KernelDef kPack{"conv2d_pack", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
 const KernelDef kBwdData{"conv2d_bwd_data",
@@ -145,6 +149,8 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
   c.slope = p.leaky_slope;
   c.cin_g = std::uint32_t(d.cin / p.groups);
   c.cout_g = std::uint32_t(d.cout / p.groups);
+  c.yh = c.hout;
+  c.yw = c.wout;
   return c;
 }
 
@@ -248,17 +254,30 @@ Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
 
 // The forward dispatch of one variant; c has everything but the padded geometry.
 // prepacked: the weight already packed (conv2d_pack_weight), else packed here.
+// residual: [N, cres, Hout, Wout] added before the activation, or nullptr.
+// Blocked only: x_padded, x's padded copy already made (x is then not read);
+// y_padded, the padded tensor to write the output into instead of y.
 void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
                  const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight,
-                 const Tensor* prepacked = nullptr) {
+                 const Tensor* prepacked = nullptr, const Tensor* residual = nullptr,
+                 const Conv2dPadded* x_padded = nullptr, const Conv2dPadded* y_padded = nullptr,
+                 const Conv2dPadded* residual_padded = nullptr) {
   const DeviceInfo& info = stream.device().info();
   const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
   c.has_bias = bias != nullptr ? 1u : 0u;
+  const Tensor& r_plain = residual != nullptr ? *residual : weight;  // unused when has_res == 0
+  c.has_res = residual != nullptr ? 1u : 0u;
+  c.cres = residual != nullptr ? std::uint32_t(residual->shape()[1]) : 0u;
+  if (residual_padded != nullptr) {  // blocked only: in x's padded layout
+    c.has_res = 2;
+    c.cres = std::uint32_t(residual_padded->shape[1]);
+  }
+  const Tensor& r = residual_padded != nullptr ? residual_padded->data : r_plain;
   switch (algo) {
     case Conv2dAlgo::auto_select:
     case Conv2dAlgo::direct: {
       const std::uint64_t n = std::uint64_t(c.n) * c.cout * c.hout * c.wout;
-      stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y)}, c,
+      stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y), texel(r)}, c,
                       groups_1d(div_up(n, 256), info));
       return;
     }
@@ -270,7 +289,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
       stream.dispatch(kPointwise,
                       {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y), texel(r)},
                       c, g, {vec4 ? 1u : 0u});
       return;
     }
@@ -279,14 +298,21 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       set_padded(c, px);
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
-      const Tensor xp = pad_input(stream, x, c);
+      const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
+      if (y_padded != nullptr) {
+        c.yh = y_padded->hp;
+        c.yw = y_padded->wp;
+        c.ytop = std::uint32_t(y_padded->top);
+        c.yleft = std::uint32_t(y_padded->left);
+      }
+      const Tensor& yt = y_padded != nullptr ? y_padded->data : y;
       // (pixel block, channel block) pairs, flattened (the shader splits them).
       const std::uint64_t blocks = std::uint64_t(c.hout) * c.wblocks * div_up(c.cout, kCoBlock);
       Groups g = groups_1d(div_up(blocks, kBlockedGroup), info);
       g.z = c.n;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y)},
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
                       c, g, {c.kh, c.kw, c.sx, c.dx, px});
       return;
     }
@@ -294,9 +320,10 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       set_padded(c);
       const Tensor xp = pad_input(stream, x, c);
       const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup), c.cout, c.n};
-      stream.dispatch(kDepthwise,
-                      {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(y)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx});
+      stream.dispatch(
+          kDepthwise,
+          {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(y), texel(r)}, c,
+          g, {c.kh, c.kw, c.sx, c.dx});
       return;
     }
   }
@@ -367,17 +394,55 @@ Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight) {
   return Conv2dPackedWeight{pack_weights(stream, weight, c, false), s};
 }
 
-void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed) {
-  const char* op = "conv2d";
-  require_f32_rank(x, 4, op, "x");
+namespace {
+
+// The padded input geometry the blocked kernel reads for these shapes.
+Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x) {
+  ConvPush c = push_of(d, p);
+  set_padded(c, blocked_px(c.wout));
+  Conv2dPadded l;
+  l.shape = x;
+  l.hp = c.hp;
+  l.wp = c.wp;
+  l.top = p.pad.top;
+  l.left = p.pad.left;
+  return l;
+}
+
+bool same_layout(const Conv2dPadded& a, const Conv2dPadded& b) {
+  return a.shape == b.shape && a.hp == b.hp && a.wp == b.wp && a.top == b.top && a.left == b.left;
+}
+
+// conv2d's checks and dispatch. x_padded: x's padded copy (x_shape is then
+// its shape and x unused); y_padded: written instead of y; residual_padded:
+// read instead of residual.
+void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weight,
+             const Tensor* bias, const Tensor* y, const Conv2dParams& p,
+             const Conv2dPackedWeight* packed, const Tensor* residual, const Conv2dPadded* x_padded,
+             const Conv2dPadded* y_padded, const Conv2dPadded* residual_padded = nullptr) {
+  const Shape xs = x_padded != nullptr ? x_padded->shape : x.shape();
+  if (x_padded == nullptr) require_f32_rank(x, 4, op, "x");
   require_f32_rank(weight, 4, op, "weight");
-  const Dims d = dims_of(op, x.shape(), weight.shape(), p);
-  require_f32(y, op, "y");
-  require_shape(y, Shape{d.n, d.cout, d.hout, d.wout}, op, "y");
+  const Dims d = dims_of(op, xs, weight.shape(), p);
+  const Shape ys{d.n, d.cout, d.hout, d.wout};
+  if (y != nullptr) {
+    require_f32(*y, op, "y");
+    require_shape(*y, ys, op, "y");
+  }
   if (bias != nullptr) {
     require_f32(*bias, op, "bias");
     require_shape(*bias, Shape{d.cout}, op, "bias");
+  }
+  if (residual != nullptr) {
+    require_f32_rank(*residual, 4, op, "residual");
+    const Shape& rs = residual->shape();
+    if (rs[0] != d.n || rs[1] < 1 || rs[1] > d.cout || rs[2] != d.hout || rs[3] != d.wout) {
+      throw InvalidArgument(op,
+                            "residual " + rs.str() + " must be [N, C, Hout, Wout] = [" + str(d.n) +
+                                ", 1.." + str(d.cout) + ", " + str(d.hout) + ", " + str(d.wout) +
+                                "]",
+                            "pass a residual with y's batch and size and at most y's channels");
+    }
   }
   if (packed != nullptr && packed->defined() && !(packed->weight_shape == weight.shape())) {
     throw InvalidArgument(op,
@@ -386,10 +451,95 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
                           "pack this weight with conv2d_pack_weight (again after it changed)");
   }
   const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
+  if (residual_padded != nullptr) {
+    // In x's padded layout: y must have x's size (a stride-1 'same' conv).
+    const Conv2dPadded want = padded_layout(d, p, xs);
+    const Conv2dPadded& r = *residual_padded;
+    const bool fits = residual == nullptr && r.defined() && r.shape.rank() == 4 &&
+                      r.shape[0] == d.n && r.shape[1] >= 1 && r.shape[1] <= d.cout &&
+                      r.shape[2] == d.h && r.shape[3] == d.w && d.hout == d.h && d.wout == d.w &&
+                      r.hp == want.hp && r.wp == want.wp && r.top == want.top &&
+                      r.left == want.left;
+    if (!fits) {
+      throw InvalidArgument(op, "the padded residual is not in this convolution's input layout",
+                            "pass one residual, padded like x (conv2d_padded_input for x's "
+                            "shape), for a convolution whose output has x's size");
+    }
+  }
+  if ((x_padded != nullptr || y_padded != nullptr || residual_padded != nullptr) &&
+      algo != Conv2dAlgo::blocked) {
+    throw InvalidArgument(op,
+                          std::string("padded inputs and outputs need the blocked variant, not ") +
+                              conv2d_algo_name(algo),
+                          "use conv2d (conv2d_padded_input is undefined for such convolutions)");
+  }
+  if (x_padded != nullptr) {
+    if (!x_padded->defined() || !same_layout(*x_padded, padded_layout(d, p, xs))) {
+      throw InvalidArgument(op, "the padded input is not the one this convolution reads",
+                            "make it with conv2d_padded_input for the same shapes and params");
+    }
+  }
+  if (y_padded != nullptr) {
+    const Conv2dPadded& t = *y_padded;
+    // Rows and columns past hp, wp are not written: the consumer reads none.
+    const bool fits = t.defined() && t.shape == ys && t.top >= 0 && t.left >= 0 &&
+                      t.data.numel() == d.n * d.cout * std::int64_t(t.hp) * std::int64_t(t.wp);
+    if (!fits) {
+      throw InvalidArgument(op, "the padded output does not hold y " + ys.str(),
+                            "make it with conv2d_padded_input for the consumer of y");
+    }
+  }
   const Tensor* prepacked =
       packed != nullptr && packed->defined() && conv2d_uses_packed_weight(algo) ? &packed->packed
                                                                                 : nullptr;
-  run_forward(stream, algo, x, weight, bias, y, push_of(d, p), false, prepacked);
+  const Tensor& xt = x_padded != nullptr ? x_padded->data : x;
+  const Tensor& yt = y != nullptr ? *y : y_padded->data;
+  run_forward(stream, algo, xt, weight, bias, yt, push_of(d, p), false, prepacked, residual,
+              x_padded, y_padded, residual_padded);
+}
+
+}  // namespace
+
+void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed,
+            const Tensor* residual) {
+  forward(stream, "conv2d", x, weight, bias, &y, p, packed, residual, nullptr, nullptr);
+}
+
+Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& weight,
+                                 const Conv2dParams& p) {
+  const char* op = "conv2d_padded_input";
+  const Dims d = dims_of(op, x, weight, p);
+  if (select(stream.device().info(), d, p, op) != Conv2dAlgo::blocked) return {};
+  Conv2dPadded l = padded_layout(d, p, x);
+  l.data =
+      Tensor::empty(stream.device(), Shape{d.n * d.cin * std::int64_t(l.hp) * std::int64_t(l.wp)});
+  stream.fill(l.data, 0.f);
+  return l;
+}
+
+void conv2d_into_padded(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
+                        const Conv2dPadded& y, const Conv2dParams& p,
+                        const Conv2dPackedWeight* packed, const Tensor* residual) {
+  forward(stream, "conv2d_into_padded", x, weight, bias, nullptr, p, packed, residual, nullptr, &y);
+}
+
+void conv2d_padded(Stream& stream, const Tensor* x, const Tensor& weight, const Tensor* bias,
+                   const Tensor* y, const Conv2dParams& p, const Conv2dPaddedIo& io,
+                   const Conv2dPackedWeight* packed, const Tensor* residual) {
+  const char* op = "conv2d_padded";
+  if ((x == nullptr) == (io.x == nullptr) || (y == nullptr) == (io.y == nullptr)) {
+    throw InvalidArgument(op, "x and y must each be given once: plain or padded",
+                          "pass either the tensor or its padded form");
+  }
+  const Tensor& xt = x != nullptr ? *x : io.x->data;
+  forward(stream, op, xt, weight, bias, y, p, packed, residual, io.x, io.y, io.residual);
+}
+
+void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& weight,
+                        const Tensor* bias, const Tensor& y, const Conv2dParams& p,
+                        const Conv2dPackedWeight* packed, const Tensor* residual) {
+  forward(stream, "conv2d_from_padded", x.data, weight, bias, &y, p, packed, residual, &x, nullptr);
 }
 
 void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
@@ -435,6 +585,8 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
     c.groups = 1;
     c.cin_g = c.cin;
     c.cout_g = c.cout;
+    c.yh = c.hout;
+    c.yw = c.wout;
     const std::string why =
         padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp) >
                 stream.device().info().max_texel_buffer_elements

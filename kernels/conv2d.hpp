@@ -15,7 +15,10 @@
 // y[n,co,oy,ox] = act(bias[co] + Σ_{ci∈group(co), ky, kx}
 //                 w[co,ci,ky,kx] · x[n, g·Cin/groups + ci, oy·sy − pad_top + ky·dy,
 //                                                          ox·sx − pad_left + kx·dx])
-// with zeros outside the image. act: none, ReLU, LeakyReLU(slope) after the bias.
+// with zeros outside the image. act: none, ReLU, LeakyReLU(slope) after the bias
+// and, when given, the residual r [N, Cr, Hout, Wout] (Cr <= Cout; channels
+// co >= Cr get none, as a shortcut zero-padded in channels would give):
+//   y[n,co,oy,ox] = act(conv + bias[co] + r[n,co,oy,ox]).
 //
 // Backward: the backward kernels assume NO activation. With a fused activation
 // the caller applies the activation's backward to dY first (using the forward
@@ -102,11 +105,57 @@ Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight);
 // Whether `algo` reads packed weights (blocked, pointwise).
 bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept;
 
-// y = act(conv(x, weight) + bias). bias may be nullptr. packed: weight packed
-// by conv2d_pack_weight (used when the selected variant reads packed weights;
-// its shape must be weight's), or nullptr to pack on this call.
+// y = act(conv(x, weight) + bias + residual). bias may be nullptr. packed:
+// weight packed by conv2d_pack_weight (used when the selected variant reads
+// packed weights; its shape must be weight's), or nullptr to pack on this
+// call. residual: [N, Cr, Hout, Wout] with 1 <= Cr <= Cout, a tensor other
+// than y, or nullptr (every variant takes it: a residual block's add and
+// ReLU in the conv's epilogue). Its gradient is the pre-activation dy
+// (channels < Cr).
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr);
+            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr,
+            const Tensor* residual = nullptr);
+
+// The zero-padded copy of an input that the blocked variant reads: planes of
+// hp × wp (wp % 4 == 0) with x at (top, left), zeros around. A producer that
+// writes its output straight into it (conv2d_into_padded) saves the consumer
+// its padding pass (conv2d_from_padded reads it).
+struct Conv2dPadded {
+  Tensor data;  // [N·C·hp·wp]
+  Shape shape;  // x's [N, C, H, W]
+  std::uint32_t hp = 0, wp = 0;
+  std::int32_t top = 0, left = 0;
+  bool defined() const noexcept { return data.defined(); }
+};
+// For conv2d(x of shape x, weight, p): its padded input, zero-filled on
+// `stream`, when the selected variant is blocked; else undefined (no data).
+Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& weight,
+                                 const Conv2dParams& p);
+// conv2d with y written into the interior of y (conv2d_padded_input of y's
+// consumer; y.shape is conv2d's output shape). Blocked variant only.
+void conv2d_into_padded(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
+                        const Conv2dPadded& y, const Conv2dParams& p,
+                        const Conv2dPackedWeight* packed = nullptr,
+                        const Tensor* residual = nullptr);
+// conv2d of the input whose padded copy x is (conv2d_padded_input for these
+// shapes and p, filled): no padding pass.
+void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& weight,
+                        const Tensor* bias, const Tensor& y, const Conv2dParams& p,
+                        const Conv2dPackedWeight* packed = nullptr,
+                        const Tensor* residual = nullptr);
+
+// The general form: x, y and the residual each plain (the tensor) or padded
+// (io: x read from its padded copy, y written into a padded tensor's
+// interior, the residual read from a tensor in x's padded layout, for a
+// stride-1 'same' convolution whose input is also its shortcut).
+struct Conv2dPaddedIo {
+  const Conv2dPadded* x = nullptr;
+  const Conv2dPadded* y = nullptr;
+  const Conv2dPadded* residual = nullptr;
+};
+void conv2d_padded(Stream& stream, const Tensor* x, const Tensor& weight, const Tensor* bias,
+                   const Tensor* y, const Conv2dParams& p, const Conv2dPaddedIo& io,
+                   const Conv2dPackedWeight* packed = nullptr, const Tensor* residual = nullptr);
 
 // dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
 // shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces

@@ -180,21 +180,53 @@ class FaceRecognitionNet::ConvLayer : public Module {
     kernel_ = kernel;
   }
 
-  Var forward(Tape& t, const Var& x, bool with_relu) const {
-    k::Conv2dParams p;
-    if (down_) {  // convDown: stride 2, 'valid'
-      p.stride_y = p.stride_x = 2;
-    } else {  // conv / convNoRelu: stride 1, 'same'
-      p.pad = k::same_padding(x.shape()[2], x.shape()[3], kernel_, kernel_, 1, 1);
-    }
-    if (!t.needs_grad({&filters_, &bias_, &scale_, &shift_})) {
+  // Whether forward() folds the scale layer (no parameter needs a gradient):
+  // only then can it take a residual.
+  bool folds(const Tape& t) const { return !t.needs_grad({&filters_, &bias_, &scale_, &shift_}); }
+
+  // act(scale(conv(x)) + residual); residual (folded only, see folds()):
+  // [N, Cr <= Cout, Hout, Wout], added in the conv's epilogue.
+  Var forward(Tape& t, const Var& x, bool with_relu, const Var& residual = Var()) const {
+    k::Conv2dParams p = params(x.shape(), with_relu);
+    if (folds(t)) {
       fold(t.stream());
-      p.activation = with_relu ? k::Activation::relu : k::Activation::none;
-      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_);
+      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_, residual);
+    }
+    p.activation = k::Activation::none;
+    if (residual.defined()) {
+      throw Error("FaceRecognitionNet", "a residual passed to an unfolded conv layer",
+                  "add the residual after the scale layer (see ConvLayer::folds)");
     }
     Var y = conv2d(t, x, filters_, bias_, p);
     y = channel_affine(t, y, scale_, shift_);
     return with_relu ? relu(t, y) : y;
+  }
+
+  // The conv's parameters for input x (activation: the folded form's).
+  k::Conv2dParams params(const Shape& x, bool with_relu) const {
+    k::Conv2dParams p;
+    if (down_) {  // convDown: stride 2, 'valid'
+      p.stride_y = p.stride_x = 2;
+    } else {  // conv / convNoRelu: stride 1, 'same'
+      p.pad = k::same_padding(x[2], x[3], kernel_, kernel_, 1, 1);
+    }
+    p.activation = with_relu ? k::Activation::relu : k::Activation::none;
+    return p;
+  }
+  Shape weight_shape() const { return filters_.shape(); }
+
+  // Inference only (folds(t), no gradient to x): the folded conv with x, y
+  // and the residual plain or padded (kernels::conv2d_padded); x_shape is x's.
+  void run_padded(Tape& t, const Shape& x_shape, const Tensor* x, const Tensor* y, bool with_relu,
+                  const k::Conv2dPaddedIo& io, const Tensor* residual = nullptr) const {
+    fold(t.stream());
+    const Tensor& b = folded_bias_.value();
+    k::conv2d_padded(t.stream(), x, folded_filters_.value(), &b, y, params(x_shape, with_relu), io,
+                     &folded_packed_.get(t.stream(), folded_filters_), residual);
+  }
+  bool runs_blocked(const Tape& t, const Shape& x) const {
+    return k::conv2d_select(t.device().info(), x, filters_.shape(), params(x, true)) ==
+           k::Conv2dAlgo::blocked;
   }
 
   // Records the folding and packing on `stream` unless the folded weights are
@@ -239,13 +271,25 @@ class FaceRecognitionNet::Residual : public Module {
         "conv2", std::make_unique<ConvLayer>(device, r, name + "/conv2", 3, cout, cout, false));
   }
 
+  // relu(conv2(conv1(x)) + shortcut). When conv2 folds its scale layer the
+  // add and the ReLU run in its epilogue; the down blocks' shortcut (x
+  // average-pooled, its channels zero-padded) goes in without the zero
+  // channels (the conv adds none past the residual's channels), unless the
+  // branch needs the zero row and column (3×3 vs 4×4, 1×1 vs 2×2).
   Var forward(Tape& t, const Var& x) const {
+    if (infers(t, x.shape()) && !t.needs_grad({&x})) return forward_inference(t, x, {}, nullptr);
+    const bool fuse = conv2_->folds(t);
+    Var pooled;
+    if (down_) pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
+    const bool shortcut_fits = !down_ || fits(pooled.shape(), mid_shape(x.shape()));
     Var out = conv1_->forward(t, x, true);
-    out = conv2_->forward(t, out, false);
-    if (!down_) return relu(t, add(t, out, x));
-
-    Var pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
+    if (!down_) {
+      if (fuse) return conv2_->forward(t, out, true, x);
+      return relu(t, add(t, conv2_->forward(t, out, false), x));
+    }
     const Shape& ps = pooled.shape();
+    if (fuse && shortcut_fits) return conv2_->forward(t, out, true, pooled);
+    out = conv2_->forward(t, out, false);
     if (ps[2] != out.shape()[2] || ps[3] != out.shape()[3]) {
       // One zero row at the bottom, then one zero column at the right.
       out = pad(t, out, k::Pad2d{0, 1, 0, 1}, 0.f);
@@ -271,7 +315,67 @@ class FaceRecognitionNet::Residual : public Module {
     conv2_->fold(stream);
   }
 
+  // conv1's output shape (conv2's input and output) for x of shape x.
+  Shape mid_shape(const Shape& x) const {
+    return k::conv2d_output_shape(x, conv1_->weight_shape(), conv1_->params(x, true));
+  }
+  Shape output_shape(const Shape& x) const { return down_ ? mid_shape(x) : x; }
+
+  // Whether forward_inference can run this block for x of shape x (nothing
+  // needing a gradient aside): both convs fold and run blocked, the
+  // shortcut goes into conv2's epilogue.
+  bool infers(const Tape& t, const Shape& x) const {
+    const Shape mid = mid_shape(x);
+    const Shape pooled{x[0], x[1], (x[2] - 2) / 2 + 1, (x[3] - 2) / 2 + 1};  // avg pool 2, 2
+    return conv1_->folds(t) && conv2_->folds(t) && (!down_ || fits(pooled, mid)) &&
+           conv1_->runs_blocked(t, x) && conv2_->runs_blocked(t, mid);
+  }
+
+  // conv1's zero-padded input for x of shape x, for the previous block to
+  // write its output into (zero-filled); undefined for the down blocks
+  // (their input also feeds the average pool).
+  k::Conv2dPadded padded_input(Tape& t, const Shape& x) const {
+    if (down_) return {};
+    return k::conv2d_padded_input(t.stream(), x, conv1_->weight_shape(), conv1_->params(x, true));
+  }
+
+  // Inference (infers(), no gradient to x): x plain, or (xp defined, a
+  // non-down block) only as conv1's padded input, which is then conv2's
+  // shortcut too (same layout). conv1 writes straight into conv2's padded
+  // input; conv2 writes into `into` (the next block's padded input) when
+  // given (the result is then undefined), else returns its output.
+  Var forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& xp,
+                        const k::Conv2dPadded* into) const {
+    const Shape xs = xp.defined() ? xp.shape : x.shape();
+    const Shape mid = mid_shape(xs);
+    Var pooled;
+    if (down_) pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
+    const k::Conv2dPadded mid_p =
+        k::conv2d_padded_input(t.stream(), mid, conv2_->weight_shape(), conv2_->params(mid, true));
+    k::Conv2dPaddedIo io1;
+    io1.x = xp.defined() ? &xp : nullptr;
+    io1.y = &mid_p;
+    conv1_->run_padded(t, xs, xp.defined() ? nullptr : &x.value(), nullptr, true, io1);
+    k::Conv2dPaddedIo io2;
+    io2.x = &mid_p;
+    io2.y = into;
+    io2.residual = xp.defined() ? &xp : nullptr;
+    const Tensor* shortcut = xp.defined() ? nullptr : (down_ ? &pooled.value() : &x.value());
+    if (into != nullptr) {
+      conv2_->run_padded(t, mid, nullptr, nullptr, true, io2, shortcut);
+      return Var();
+    }
+    Tensor y = Tensor::empty(t.stream().device(), mid);
+    conv2_->run_padded(t, mid, nullptr, &y, true, io2, shortcut);
+    return t.output(y, false);
+  }
+
  private:
+  // The pooled shortcut goes into conv2's epilogue: same size, no more channels.
+  static bool fits(const Shape& pooled, const Shape& mid) {
+    return pooled[2] == mid[2] && pooled[3] == mid[3] && pooled[1] <= mid[1];
+  }
+
   ConvLayer* conv1_;
   ConvLayer* conv2_;
   bool down_;
@@ -355,7 +459,23 @@ Var FaceRecognitionNet::forward(Tape& t, const Var& rgb) const {
   Var x = channel_affine(t, rgb, input_scale_, input_shift_);
   x = conv32_down_->forward(t, x, true);
   x = max_pool2d(t, x, k::pool_valid(3, 3, 2, 2));
-  for (const Residual* block : blocks_) x = block->forward(t, x);
+  // Inference: a block writes its output straight into the next one's
+  // padded conv1 input when both run inference and the next is no down block.
+  k::Conv2dPadded xp;  // defined: the block input, held only there (x undefined)
+  for (std::size_t i = 0; i < blocks_.size(); ++i) {
+    const Residual* block = blocks_[i];
+    const Shape xs = xp.defined() ? xp.shape : x.shape();
+    if (!xp.defined() && !(block->infers(t, xs) && !t.needs_grad({&x}))) {
+      x = block->forward(t, x);
+      continue;
+    }
+    const Residual* next = i + 1 < blocks_.size() ? blocks_[i + 1] : nullptr;
+    const Shape ys = block->output_shape(xs);
+    k::Conv2dPadded into;
+    if (next != nullptr && next->infers(t, ys)) into = next->padded_input(t, ys);
+    x = block->forward_inference(t, x, xp, into.defined() ? &into : nullptr);
+    xp = into;
+  }
   x = global_avg_pool(t, x);
   x = reshape(t, x, Shape{x.shape()[0], x.shape()[1]});
   return linear(t, x, fc_, Var());

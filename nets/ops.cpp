@@ -253,16 +253,17 @@ const k::Conv2dPackedWeight& ConvWeightCache::get(Stream& stream, const Var& wei
 }
 
 Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
-           const kernels::Conv2dParams& p, const ConvWeightCache* cache) {
+           const kernels::Conv2dParams& p, const ConvWeightCache* cache, const Var& residual) {
   Tensor y = empty(x, k::conv2d_output_shape(x.shape(), weight.shape(), p));
   const Tensor* b = bias.defined() ? &bias.value() : nullptr;
+  const Tensor* r = residual.defined() ? &residual.value() : nullptr;
   const k::Conv2dPackedWeight* packed = nullptr;
   if (cache != nullptr && k::conv2d_uses_packed_weight(k::conv2d_select(
                               t.device().info(), x.value().shape(), weight.shape(), p))) {
     packed = &cache->get(t.stream(), weight);
   }
-  k::conv2d(t.stream(), x.value(), weight.value(), b, y, p, packed);
-  return finish(t, y, {&x, &weight, &bias}, [x, weight, bias, y, p](Tape& tape, const Tensor& dy) {
+  k::conv2d(t.stream(), x.value(), weight.value(), b, y, p, packed, r);
+  auto step = [x, weight, bias, residual, y, p](Tape& tape, const Tensor& dy) {
     Stream& s = tape.stream();
     // The backward kernels take the pre-activation gradient; ReLU/LeakyReLU
     // derivatives follow sign(y) = sign(pre-activation).
@@ -278,6 +279,9 @@ Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
     pb.activation = k::Activation::none;
     pb.algo = k::Conv2dAlgo::auto_select;
     GradSlot gx = tape.slot(x), gw = tape.slot(weight), gb = tape.slot(bias);
+    GradSlot gr = tape.slot(residual);
+    // The residual's gradient: d_pre over its channels [0, Cr).
+    if (gr) k::slice(s, d_pre, k::SliceStart{}, gr.target);
     if (gx) k::conv2d_backward_data(s, d_pre, weight.value(), gx.target, pb);
     if (gw) {
       k::conv2d_backward_weight(s, x.value(), d_pre, gw.target, gb.ptr(), pb);
@@ -287,7 +291,9 @@ Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
     tape.commit(gx);
     tape.commit(gw);
     tape.commit(gb);
-  });
+    tape.commit(gr);
+  };
+  return finish(t, y, {&x, &weight, &bias, &residual}, step);
 }
 
 Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias) {

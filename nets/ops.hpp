@@ -61,10 +61,14 @@ class ConvWeightCache {
   mutable kernels::Conv2dPackedWeight packed_;
 };
 
-// act(conv(x, weight) + bias); weight OIHW; bias may be undefined. cache:
-// where weight's packed form is kept between calls (nullptr: packed per call).
+// act(conv(x, weight) + bias + residual); weight OIHW; bias and residual may
+// be undefined. cache: where weight's packed form is kept between calls
+// (nullptr: packed per call). residual: [N, Cr, Hout, Wout], Cr <= Cout (the
+// channels past Cr get none: a shortcut zero-padded in channels), added in
+// the conv's epilogue (a residual block's add and ReLU in one dispatch).
 Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
-           const kernels::Conv2dParams& p, const ConvWeightCache* cache = nullptr);
+           const kernels::Conv2dParams& p, const ConvWeightCache* cache = nullptr,
+           const Var& residual = Var());
 // x [M, K] · weight [K, N] (+ bias [N] when defined).
 Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias);
 Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p);

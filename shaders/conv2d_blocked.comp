@@ -11,6 +11,7 @@
 // outputs per invocation. Measured on lavapipe (3×3 64→64 128²): scalar input
 // reads 3.5–4 GFLOP/s, vec4 input reads 12–17; weights through a 64 KiB UBO
 // (chunked dispatches) were slower than through this texel buffer.
+#define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
 layout(local_size_x = 64) in;
@@ -71,14 +72,22 @@ void main() {
     const uint co = cob * 8u + j;
     b[j] = (pc.has_bias != 0u && co < pc.cout) ? texelFetch(bias, int(co)).r : 0.0;
   }
-  const uint hw = pc.hout * pc.wout;
-  const uint obase = (n * pc.cout + cob * 8u) * hw + oy * pc.wout + ox0;
+  // y: planes of yh × yw with the output at (ytop, yleft): hout × wout
+  // itself, or the zero-padded input of the next conv (conv2d_padded_input).
+  const uint hw = pc.yh * pc.yw;
+  const uint obase = (n * pc.cout + cob * 8u) * hw + (oy + pc.ytop) * pc.yw + ox0 + pc.yleft;
+  // A padded y may end before the output does (its consumer reads no further).
+  if (oy + pc.ytop >= pc.yh) return;
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    if (ox0 + p < pc.wout) {
+    if (ox0 + p < pc.wout && ox0 + p + pc.yleft < pc.yw) {
       [[unroll]] for (uint j = 0u; j < 4u; ++j) {
-        if (cob * 8u + j < pc.cout) y[obase + j * hw + p] = conv_act(a0[p][j] + b[j]);
-        if (cob * 8u + 4u + j < pc.cout) {
-          y[obase + (4u + j) * hw + p] = conv_act(a1[p][j] + b[4u + j]);
+        const uint c0 = cob * 8u + j, c1 = c0 + 4u;
+        if (c0 < pc.cout) {
+          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual_at(n, c0, oy, ox0 + p));
+        }
+        if (c1 < pc.cout) {
+          y[obase + (4u + j) * hw + p] =
+              conv_act(a1[p][j] + b[4u + j] + conv_residual_at(n, c1, oy, ox0 + p));
         }
       }
     }

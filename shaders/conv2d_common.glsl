@@ -16,7 +16,31 @@ layout(push_constant) uniform Push {
   uint hp, wp;                // zero-padded input planes (blocked, depthwise)
   uint wblocks;               // output pixel blocks per row (blocked, depthwise)
   uint cin_g, cout_g;         // channels per group
+  uint has_res;               // residual added before the activation (forward)
+  uint cres;                  // its channels (<= cout; channels past it get none)
+  uint yh, yw;                // y's planes (blocked: hout × wout, or a padded tensor's)
+  uint ytop, yleft;           // where the output sits in them
 } pc;
+
+// The forward shaders that take a residual declare it as binding 4
+// (`res`, [n, cres, hout, wout]) and add it with conv_residual() before
+// conv_act(): y = act(conv + bias + residual).
+#ifdef CONV2D_RESIDUAL
+layout(binding = 4) uniform samplerBuffer res;
+// The residual at output channel co, flat pixel pix (oy·wout + ox) of image n.
+float conv_residual(uint n, uint co, uint pix) {
+  if (pc.has_res == 0u || co >= pc.cres) return 0.0;
+  return texelFetch(res, int((n * pc.cres + co) * pc.hout * pc.wout + pix)).r;
+}
+// Also has_res == 2 (blocked): the residual in this conv's own padded-input
+// layout (planes hp × wp, at (pt, pl); a stride-1 'same' conv's input).
+float conv_residual_at(uint n, uint co, uint oy, uint ox) {
+  if (pc.has_res != 2u) return conv_residual(n, co, oy * pc.wout + ox);
+  if (co >= pc.cres) return 0.0;
+  const int row = int((n * pc.cres + co) * pc.hp + oy) + pc.pt;
+  return texelFetch(res, row * int(pc.wp) + int(ox) + pc.pl).r;
+}
+#endif
 
 float conv_act(float v) {
   if (pc.act == 1u) return max(v, 0.0);

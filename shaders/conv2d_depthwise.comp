@@ -2,6 +2,7 @@
 // conv2d forward, depthwise (groups == cin, cout = cin · multiplier): each
 // invocation computes 8 consecutive output pixels of one row of one output
 // channel, from the zero-padded input of conv2d_pad (no bounds checks).
+#define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
 layout(local_size_x = 64) in;
@@ -47,6 +48,8 @@ void main() {
   const float b = pc.has_bias != 0u ? texelFetch(bias, int(co)).r : 0.0;
   const uint obase = ((n * pc.cout + co) * pc.hout + oy) * pc.wout + ox0;
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    if (ox0 + p < pc.wout) y[obase + p] = conv_act(acc[p] + b);
+    if (ox0 + p < pc.wout) {
+      y[obase + p] = conv_act(acc[p] + b + conv_residual(n, co, oy * pc.wout + ox0 + p));
+    }
   }
 }

@@ -1,6 +1,7 @@
 #version 450
 // conv2d forward, any parameters: one output element per invocation, bounds
 // checked. The fallback; conv2d_blocked/pointwise/depthwise are the fast paths.
+#define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
 layout(local_size_x = 256) in;
@@ -37,5 +38,5 @@ void main() {
       }
     }
   }
-  y[i] = conv_act(acc);
+  y[i] = conv_act(acc + conv_residual(n, co, oy * pc.wout + ox));
 }

@@ -2,6 +2,7 @@
 // conv2d forward, 1×1 kernel, stride 1, no padding, groups == 1: a matmul
 // y[n] = W · x[n] over the flattened h·w pixels. Each invocation computes 8
 // output channels × 8 consecutive pixels; weights packed as in conv2d_blocked.
+#define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
 layout(local_size_x = 64) in;
@@ -69,9 +70,13 @@ void main() {
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
     if (pix0 + p < hw) {
       [[unroll]] for (uint j = 0u; j < 4u; ++j) {
-        if (cob * 8u + j < pc.cout) y[obase + j * hw + p] = conv_act(a0[p][j] + b[j]);
-        if (cob * 8u + 4u + j < pc.cout) {
-          y[obase + (4u + j) * hw + p] = conv_act(a1[p][j] + b[4u + j]);
+        const uint c0 = cob * 8u + j, c1 = c0 + 4u;
+        if (c0 < pc.cout) {
+          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual(n, c0, pix0 + p));
+        }
+        if (c1 < pc.cout) {
+          y[obase + (4u + j) * hw + p] =
+              conv_act(a1[p][j] + b[4u + j] + conv_residual(n, c1, pix0 + p));
         }
       }
     }

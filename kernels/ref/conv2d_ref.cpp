@@ -49,7 +49,8 @@ std::int64_t conv2d_out_w(const Conv2dDims& d, const kernels::Conv2dParams& p) {
 
 std::vector<float> conv2d(std::span<const float> x, std::span<const float> w,
                           std::span<const float> bias, const Conv2dDims& d,
-                          const kernels::Conv2dParams& p) {
+                          const kernels::Conv2dParams& p, std::span<const float> residual,
+                          std::int64_t cres) {
   const std::int64_t hw = conv2d_out_h(d, p) * conv2d_out_w(d, p);
   std::vector<double> acc(std::size_t(d.n * d.cout * hw), 0.0);
   for_each_tap(d, p, [&](std::size_t yi, std::size_t wi, std::size_t xi) {
@@ -58,7 +59,12 @@ std::vector<float> conv2d(std::span<const float> x, std::span<const float> w,
   std::vector<float> y(acc.size());
   for (std::size_t i = 0; i < acc.size(); ++i) {
     double v = acc[i];
-    if (!bias.empty()) v += bias[(i / std::size_t(hw)) % std::size_t(d.cout)];
+    const std::size_t co = (i / std::size_t(hw)) % std::size_t(d.cout);
+    if (!bias.empty()) v += bias[co];
+    if (!residual.empty() && co < std::size_t(cres)) {
+      const std::size_t n = i / (std::size_t(hw) * std::size_t(d.cout));
+      v += residual[(n * std::size_t(cres) + co) * std::size_t(hw) + i % std::size_t(hw)];
+    }
     if (p.activation == kernels::Activation::relu && v < 0) v = 0;
     if (p.activation == kernels::Activation::leaky_relu && v < 0) v *= p.leaky_slope;
     y[i] = float(v);

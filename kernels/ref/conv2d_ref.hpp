@@ -19,10 +19,12 @@ struct Conv2dDims {
 std::int64_t conv2d_out_h(const Conv2dDims& d, const kernels::Conv2dParams& p);
 std::int64_t conv2d_out_w(const Conv2dDims& d, const kernels::Conv2dParams& p);
 
-// y = act(conv(x, w) + bias); bias may be empty.
+// y = act(conv(x, w) + bias + residual); bias may be empty; residual
+// [n, cres, hout, wout] (cres <= cout; channels past it get none) may be empty.
 std::vector<float> conv2d(std::span<const float> x, std::span<const float> w,
                           std::span<const float> bias, const Conv2dDims& d,
-                          const kernels::Conv2dParams& p);
+                          const kernels::Conv2dParams& p, std::span<const float> residual = {},
+                          std::int64_t cres = 0);
 // dx for dy (no activation).
 std::vector<float> conv2d_backward_data(std::span<const float> dy, std::span<const float> w,
                                         const Conv2dDims& d, const kernels::Conv2dParams& p);

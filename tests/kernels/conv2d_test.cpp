@@ -165,9 +165,17 @@ void check_forward(const Case& c, std::uint32_t seed) {
   const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
   const auto want = ref::conv2d(xs, wv, bv, c.d, c.p);
   const auto want_nobias = ref::conv2d(xs, wv, {}, c.d, c.p);
+  // A residual with all of y's channels or (every other case) fewer: the channels
+  // past it get none, as in a shortcut zero-padded in channels.
+  const std::int64_t cres = (seed / 10) % 2 == 0 ? c.d.cout : (c.d.cout + 1) / 2;
+  Shape rs = y_shape(c);
+  rs = Shape{rs[0], cres, rs[2], rs[3]};
+  const auto rv = test::random_floats(std::size_t(rs.numel()), seed + 4);
+  const auto want_res = ref::conv2d(xs, wv, bv, c.d, c.p, rv, cres);
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
   Tensor w = Tensor::from(dev, ws, wv);
   Tensor b = Tensor::from(dev, {c.d.cout}, bv);
+  Tensor r = Tensor::from(dev, rs, rv);
   EXPECT_EQ(kernels::conv2d_output_shape(x.shape(), w.shape(), c.p), y_shape(c));
   for (Conv2dAlgo a : runnable(dev, c)) {
     Conv2dParams p = c.p;
@@ -175,18 +183,23 @@ void check_forward(const Case& c, std::uint32_t seed) {
     Tensor y = Tensor::empty(dev, y_shape(c));
     Tensor y2 = Tensor::empty(dev, y_shape(c));
     Tensor y3 = Tensor::empty(dev, y_shape(c));
+    Tensor y4 = Tensor::empty(dev, y_shape(c));
     Stream s(dev);
     kernels::conv2d(s, x, w, &b, y, p);
     kernels::conv2d(s, x, w, nullptr, y2, p);
     // Weights packed once, ahead of the call (what models do at load).
     const kernels::Conv2dPackedWeight packed = kernels::conv2d_pack_weight(s, w);
     kernels::conv2d(s, x, w, &b, y3, p, &packed);
+    kernels::conv2d(s, x, w, &b, y4, p, &packed, &r);
     s.run();
     expect_close(y.download(), want, std::string("forward ") + kernels::conv2d_algo_name(a));
     expect_close(y2.download(), want_nobias,
                  std::string("forward without bias ") + kernels::conv2d_algo_name(a));
     expect_close(y3.download(), want,
                  std::string("forward, packed weight ") + kernels::conv2d_algo_name(a));
+    expect_close(y4.download(), want_res,
+                 std::string("forward with a residual of ") + std::to_string(cres) + " channels " +
+                     kernels::conv2d_algo_name(a));
   }
 }
 
@@ -235,6 +248,102 @@ TEST(Conv2d, BackwardMatchesReference) {
   int k = 0;
   for (const Case& c : random_cases(seed, 16)) check_backward(c, seed + 10 * std::uint32_t(k++));
   for (const Case& c : edge_cases()) check_backward(c, seed + 10 * std::uint32_t(k++));
+}
+
+// A blocked conv writing straight into the zero-padded input of the next
+// one (conv2d_into_padded), which reads it with no padding pass
+// (conv2d_from_padded): the two match the reference chained on the host.
+void check_padded_chain(const Case& c, std::uint32_t seed) {
+  Device& dev = test::device();
+  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+  std::mt19937 rng(seed);
+  auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+  const Shape ys = y_shape(c);
+  ref::Conv2dDims d2{ys[0], ys[1], ys[2], ys[3], std::int64_t(uni(1, 20)), 3, 3};
+  Conv2dParams p2;
+  p2.stride_y = uni(1, 2);
+  p2.stride_x = uni(1, 2);
+  p2.pad = {uni(0, 2), uni(0, 2), uni(0, 2), uni(0, 2)};
+  p2.activation = Activation::relu;
+  const Case c2{d2, p2};
+  if (!valid(c2)) return;
+  Conv2dParams p1 = c.p;
+  p1.algo = Conv2dAlgo::blocked;
+  const Shape ws = w_shape(c.d, 1), ws2 = w_shape(d2, 1);
+  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
+  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
+  const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
+  const auto wv2 = test::random_floats(std::size_t(ws2.numel()), seed + 3);
+  const auto rv = test::random_floats(std::size_t(y_shape(c2).numel()), seed + 4);
+  const auto mid = ref::conv2d(xs, wv, bv, c.d, c.p);
+  const auto want = ref::conv2d(mid, wv2, {}, d2, p2, rv, d2.cout);
+  Stream s(dev);
+  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, ys, ws2, p2);
+  if (!xp.defined()) {  // 1 input channel: the consumer runs depthwise, reading x unpadded
+    EXPECT_NE(kernels::conv2d_select(dev.info(), ys, ws2, p2), Conv2dAlgo::blocked);
+    return;
+  }
+  Tensor x = Tensor::from(dev, x_shape(c.d), xs);
+  Tensor w = Tensor::from(dev, ws, wv);
+  Tensor b = Tensor::from(dev, {c.d.cout}, bv);
+  Tensor w2 = Tensor::from(dev, ws2, wv2);
+  Tensor r = Tensor::from(dev, y_shape(c2), rv);
+  Tensor y = Tensor::empty(dev, y_shape(c2));
+  kernels::conv2d_into_padded(s, x, w, &b, xp, p1);
+  kernels::conv2d_from_padded(s, xp, w2, nullptr, y, p2, nullptr, &r);
+  s.run();
+  expect_close(y.download(), want, "conv into padded, conv from padded");
+}
+
+TEST(Conv2d, ChainsThroughPaddedTensors) {
+  const std::uint32_t seed = 404;
+  int k = 0, checked = 0;
+  for (Case c : random_cases(seed, 40)) {
+    if (c.p.groups != 1 || c.d.kh > 7 || c.d.kw > 7) continue;
+    check_padded_chain(c, seed + 10 * std::uint32_t(k++));
+    ++checked;
+  }
+  EXPECT_GE(checked, 10);
+}
+
+// A residual block's second conv reading its input and its shortcut from
+// one padded tensor (a stride-1 'same' conv: the shortcut has the input's
+// layout), the shortcut with fewer channels than y; x, y: 2 images.
+TEST(Conv2d, ResidualInThePaddedInputLayout) {
+  Device& dev = test::device();
+  const ref::Conv2dDims d0{2, 5, 9, 11, 8, 3, 3}, d1{2, 8, 9, 11, 12, 3, 3};
+  Conv2dParams p;
+  p.pad = {1, 1, 1, 1};
+  p.activation = Activation::relu;
+  const auto x0 = test::random_floats(std::size_t(x_shape(d0).numel()), 1);
+  const auto w0 = test::random_floats(std::size_t(w_shape(d0, 1).numel()), 2);
+  const auto w1 = test::random_floats(std::size_t(w_shape(d1, 1).numel()), 3);
+  const auto b1 = test::random_floats(std::size_t(d1.cout), 4);
+  const auto mid = ref::conv2d(x0, w0, {}, d0, p);
+  const auto want = ref::conv2d(mid, w1, b1, d1, p, mid, d1.cin);
+  Stream s(dev);
+  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x_shape(d1), w_shape(d1, 1), p);
+  ASSERT_TRUE(xp.defined());
+  Tensor x = Tensor::from(dev, x_shape(d0), x0);
+  Tensor tw0 = Tensor::from(dev, w_shape(d0, 1), w0);
+  Tensor tw1 = Tensor::from(dev, w_shape(d1, 1), w1);
+  Tensor tb1 = Tensor::from(dev, {d1.cout}, b1);
+  Tensor y = Tensor::empty(dev, {2, 12, 9, 11});
+  kernels::Conv2dPaddedIo io0;
+  io0.y = &xp;
+  kernels::conv2d_padded(s, &x, tw0, nullptr, nullptr, p, io0);
+  kernels::Conv2dPaddedIo io1;
+  io1.x = &xp;
+  io1.residual = &xp;
+  kernels::conv2d_padded(s, nullptr, tw1, &tb1, &y, p, io1);
+  s.run();
+  expect_close(y.download(), want, "residual from the padded input");
+  Conv2dParams strided = p;  // output smaller than x: no shortcut in x's layout
+  strided.stride_y = strided.stride_x = 2;
+  Tensor y2 = Tensor::empty(dev, {2, 12, 5, 6});
+  io1.x = nullptr;
+  Tensor x1 = Tensor::empty(dev, x_shape(d1));
+  EXPECT_THROW(kernels::conv2d_padded(s, &x1, tw1, nullptr, &y2, strided, io1), InvalidArgument);
 }
 
 // Central differences of L = Σ g ⊙ conv(x, w, b) against dX, dW, dbias.
@@ -369,6 +478,15 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, forced); }, "pointwise");
   Tensor big_w = Tensor::empty(dev, {8, 4, 11, 11});
   expect_message([&] { kernels::conv2d_output_shape(x.shape(), big_w.shape(), p); }, "exceeds");
+  Tensor res_wide = Tensor::empty(dev, {1, 9, 6, 6});
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_wide); }, "residual");
+  Tensor res_small = Tensor::empty(dev, {1, 8, 5, 6});
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_small); }, "residual");
+  Conv2dParams same = p;
+  same.pad = {1, 1, 1, 1};
+  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x.shape(), w.shape(), same);
+  expect_message([&] { kernels::conv2d_from_padded(s, xp, w, nullptr, y, p); }, "padded input");
+  expect_message([&] { kernels::conv2d_into_padded(s, x, w, nullptr, xp, p); }, "padded output");
   Tensor dy_bad = Tensor::empty(dev, {1, 8, 5, 6});
   expect_message([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
   expect_message([&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");

@@ -124,6 +124,15 @@ TEST(NetsOps, ConvolutionWithFusedActivationAndBias) {
   check_gradients(
       "conv2d depthwise, no bias", {{Shape{1, 4, 6, 5}}, {Shape{4, 1, 3, 3}}},
       [dw](Tape& t, auto& v) { return conv2d(t, v[0], v[1], Var(), dw); }, 22, o);
+  // A residual in the epilogue with fewer channels than y (4 of 6; batch 2:
+  // its gradient is a channel slice of each image's). No activation: with
+  // 180 outputs per weight, central differences would cross its kink.
+  kernels::Conv2dParams rp;
+  rp.pad = {1, 1, 1, 1};
+  check_gradients(
+      "conv2d with a residual",
+      {{Shape{2, 3, 5, 6}}, {Shape{6, 3, 3, 3}}, {Shape{6}}, {Shape{2, 4, 5, 6}}},
+      [rp](Tape& t, auto& v) { return conv2d(t, v[0], v[1], v[2], rp, nullptr, v[3]); }, 23, o);
 }
 
 TEST(NetsOps, LinearPoolingResizeLayout) {
