@@ -64,12 +64,8 @@ std::vector<double> parse_wavelengths_nm(const std::string& text, const std::str
 
 sim::Params params_from_args(const PathArgs& a) {
   sim::Params p = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
-  if (!a.wavelengths.empty()) {
-    // An r0 given "at the first wavelength" keeps the wavelength it was given at.
-    if (p.path.strength == sim::Strength::r0 && p.path.r0_wavelength_m == 0)
-      p.path.r0_wavelength_m = p.optics.wavelengths_m.front();
-    p.optics.wavelengths_m = parse_wavelengths_nm(a.wavelengths, "--wavelengths");
-  }
+  if (!a.wavelengths.empty())
+    sim::set_wavelengths(p, parse_wavelengths_nm(a.wavelengths, "--wavelengths"));
   if (a.range) p.path.range_m = *a.range;
   if (a.cn2 && a.r0) throw InvalidArgument("--cn2/--r0", "give one turbulence strength, not both");
   if (a.cn2) {

@@ -42,9 +42,7 @@ void run_sim_train(TrainArgs& a) {
   check_writable(a.output, a.force);
   sim::Params params = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
   if (a.wavelength_nm) {
-    if (params.path.strength == sim::Strength::r0 && params.path.r0_wavelength_m == 0)
-      params.path.r0_wavelength_m = params.optics.wavelengths_m.front();
-    params.optics.wavelengths_m = {*a.wavelength_nm * 1e-9};
+    sim::set_wavelengths(params, {*a.wavelength_nm * 1e-9});
     params.image.channels = 1;
   }
   Device device = open_device(a.device);

@@ -14,6 +14,7 @@
 #include <limits>
 #include <numbers>
 #include <string>
+#include <utility>
 
 namespace vkjr2::sim {
 namespace {
@@ -130,6 +131,13 @@ double channel_wavelength_m(const Params& params, int channel) {
                           "pass a channel index below image.channels");
   if (w.empty()) bad("optics.wavelengths_m", "is empty", "give one wavelength or one per channel");
   return w.size() == 1 ? w.front() : w[static_cast<std::size_t>(channel)];
+}
+
+void set_wavelengths(Params& params, std::vector<double> wavelengths_m) {
+  if (params.path.strength == Strength::r0 && params.path.r0_wavelength_m == 0 &&
+      !params.optics.wavelengths_m.empty())
+    params.path.r0_wavelength_m = params.optics.wavelengths_m.front();
+  params.optics.wavelengths_m = std::move(wavelengths_m);
 }
 
 void validate(const Params& p) {

@@ -118,6 +118,10 @@ double pixel_pitch_m(const Params& params);
 
 // Wavelength of channel c (the single wavelength when only one is given).
 double channel_wavelength_m(const Params& params, int channel);
+// Replaces optics.wavelengths_m and keeps the turbulence: an r0 given at the
+// first wavelength (Strength::r0, r0_wavelength_m = 0) is pinned to the
+// wavelength it was given at. Not validated (validate() does that).
+void set_wavelengths(Params& params, std::vector<double> wavelengths_m);
 
 // The path integrals of Cn² with the weightings used by derive(), for the
 // parameters' path (with Strength::r0 the equivalent uniform Cn² at

@@ -279,7 +279,7 @@ void psf_checks(const Device& device, const Params& base, const ValidationConfig
   p.image = {kFrame, kFrame, 1, 1};
   std::string at;
   if (wavelength_m > 0) {
-    p.optics.wavelengths_m = {wavelength_m};
+    set_wavelengths(p, {wavelength_m});
     char nm[32];
     std::snprintf(nm, sizeof nm, " at %.0f nm", wavelength_m * 1e9);
     at = nm;

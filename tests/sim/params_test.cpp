@@ -149,6 +149,21 @@ TEST(SimParams, R0GivenDirectlyAndColour) {
   EXPECT_NEAR(derive(p).channels[0].r0_m, 0.05, 1e-10);
   // The summary names the channel count.
   EXPECT_NE(summary(p, d).find("of 3"), std::string::npos);
+  // set_wavelengths keeps that r0 at the wavelength it was given at.
+  Params q = p;
+  set_wavelengths(q, {700e-9});
+  q.image.channels = 1;
+  EXPECT_DOUBLE_EQ(q.path.r0_wavelength_m, 620e-9);
+  EXPECT_NEAR(derive(q).channels[0].r0_m, 0.05 * std::pow(700.0 / 620.0, 1.2), 1e-10);
+  // An r0 given at an explicit wavelength, or a Cn², is left as it is.
+  q = p;
+  q.path.r0_wavelength_m = 500e-9;
+  set_wavelengths(q, {700e-9});
+  EXPECT_DOUBLE_EQ(q.path.r0_wavelength_m, 500e-9);
+  q = preset("moderate");
+  set_wavelengths(q, {700e-9});
+  EXPECT_EQ(q.path.r0_wavelength_m, 0.0);
+  EXPECT_EQ(q.optics.wavelengths_m, std::vector<double>{700e-9});
 }
 
 TEST(SimParams, FieldWidthSamplingAndNonSquareImages) {
