@@ -102,8 +102,19 @@ Simulator::Simulator(const Device& device, const Params& params,
   for (BlurGroup& g : groups_) {
     const Tensor& basis = g.model->basis();
     const std::int64_t k = basis.shape()[0], s = basis.shape()[1];
-    g.beta_grid = Tensor::empty(device_, {b, k, field_->grid_h(), field_->grid_w()});
-    g.beta = Tensor::empty(device_, {b, k, h, w});
+    // Groups of one model and scale (more than 4 channels, or channels of
+    // one wavelength apart) share one β: the P2S pass runs once for them.
+    const auto same = std::find_if(groups_.begin(), groups_.end(), [&](const BlurGroup& e) {
+      return e.model == g.model && e.coefficient_scale == g.coefficient_scale;
+    });
+    if (&*same != &g) {
+      g.shares_beta = true;
+      g.beta_grid = same->beta_grid;
+      g.beta = same->beta;
+    } else {
+      g.beta_grid = Tensor::empty(device_, {b, k, field_->grid_h(), field_->grid_w()});
+      g.beta = Tensor::empty(device_, {b, k, h, w});
+    }
     g.norm = Tensor::empty(device_, {b, 1, h, w});
     if (groups_.size() == 1) {
       g.warped = warped_;
@@ -179,8 +190,10 @@ void Simulator::frame(Stream& stream, const Tensor& x, const Tensor& y) {
 void Simulator::blur(Stream& stream) {
   std::vector<Tensor> outputs;
   for (BlurGroup& g : groups_) {
-    g.model->weights(stream, field_->coefficients(), g.beta_grid, g.coefficient_scale);
-    kernels::resize(stream, g.beta_grid, kernels::ResizeMode::bilinear_align_corners, g.beta);
+    if (!g.shares_beta) {
+      g.model->weights(stream, field_->coefficients(), g.beta_grid, g.coefficient_scale);
+      kernels::resize(stream, g.beta_grid, kernels::ResizeMode::bilinear_align_corners, g.beta);
+    }
     if (groups_.size() > 1) kernels::slice(stream, warped_, {.channel = g.first}, g.warped);
     if (g.fft) {
       g.fft->forward(stream, g.warped, g.beta, g.blurred, g.norm, {.normalize = true});

@@ -93,7 +93,8 @@ class Simulator {
   struct BlurGroup {
     int first = 0, count = 0;
     std::shared_ptr<const BlurModel> model;
-    float coefficient_scale = 1;               // λ_0 / λ_c
+    float coefficient_scale = 1;  // λ_0 / λ_c
+    bool shares_beta = false;     // an earlier group with this model and scale makes beta
     std::unique_ptr<kernels::PsfConvFft> fft;  // the FFT path, when it is the cheaper one
     // beta_grid [B, K, gh, gw], beta [B, K, H, W], norm [B, 1, H, W]; with
     // more than one group also the group's warped and blurred channels

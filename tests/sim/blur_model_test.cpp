@@ -197,6 +197,33 @@ TEST_F(BlurModelTest, PerChannelWavelengthBackwardMatchesFiniteDifferences) {
                               5, "simulator two wavelengths d/dx");
 }
 
+// More than 4 channels: groups of at most 4 that share one β. A 6-channel
+// frame of one plane repeated is the 1-channel frame repeated.
+TEST_F(BlurModelTest, MoreThanFourChannelsShareOneBeta) {
+  Device& dev = test::device();
+  const auto blur = load_blur_model(dev, path_);
+  const int h = 16, w = 20;
+  const auto plane = test::random_floats(std::size_t(h) * std::size_t(w), 12, 0.f, 1.f);
+  std::vector<float> xs;
+  for (int c = 0; c < 6; ++c) xs.insert(xs.end(), plane.begin(), plane.end());
+  Simulator six(dev, params(1, 6, h, w), blur, {}), one(dev, params(1, 1, h, w), blur, {});
+  const Tensor x6 = Tensor::from(dev, {1, 6, h, w}, xs), y6 = Tensor::empty(dev, x6.shape());
+  const Tensor x1 = Tensor::from(dev, {1, 1, h, w}, plane), y1 = Tensor::empty(dev, x1.shape());
+  six.reset(4);
+  one.reset(4);
+  Stream s(dev);
+  six.frame(s, x6, y6);
+  one.frame(s, x1, y1);
+  s.run();
+  const auto got = y6.download(), want = y1.download();
+  for (int c = 0; c < 6; ++c) {
+    test::expect_all_near(std::vector<float>(got.begin() + std::ptrdiff_t(c) * h * w,
+                                             got.begin() + std::ptrdiff_t(c + 1) * h * w),
+                          want, 1e-5, 1e-5);
+  }
+  EXPECT_EQ(six.beta(5).shape(), six.beta(0).shape());
+}
+
 // A channel no model was made for is an error naming it and the fix.
 TEST_F(BlurModelTest, AChannelWithoutAModelForItsWavelengthIsAClearError) {
   Device& dev = test::device();
