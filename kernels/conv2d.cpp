@@ -31,6 +31,8 @@ static_assert(sizeof(ConvPush) == 30 * 4 && sizeof(ConvPush) <= 128);
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
 constexpr std::uint32_t kBlockedGroup = 64;
+constexpr std::uint32_t kMaxRowTile = 20;  // blocked: rows up to this wide are one pixel block
+constexpr std::uint32_t kMaxTileAccumulators = 25;  // blocked: vec4 accumulators per invocation
 constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
 constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
 constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
@@ -154,23 +156,64 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
   return c;
 }
 
+// The blocked kernel's tile: each invocation computes 4·cg output channels ×
+// ry rows × px consecutive pixels (cg·ry·px vec4 accumulators).
+struct BlockedTile {
+  std::uint32_t px = kPx, cg = 2, ry = 1;
+};
+
+// The one choice of tile for these shapes (the padded input's geometry
+// depends on it, so producers and consumers of a padded tensor call it on the
+// same ConvPush). Measured on lavapipe (recognition-net shapes, CPU time per
+// conv): a weight fetch (the same texel in every lane) costs about twice an
+// input fetch, and the accumulators live on the stack either way, so the
+// best tiles are large (up to ~25 vec4) with no wasted pixels:
+//  - a row of at most kMaxRowTile pixels is one block (px = wout: a 10-wide
+//    row in 8-pixel blocks wastes 6 of 16 pixels);
+//  - stride 1: 4 channels × ry rows (half the weight fetches per FMA of 8
+//    channels × 1 row), ry splitting the rows evenly;
+//  - strided: 8 channels × 1 row when that fits, else 4 channels.
+BlockedTile blocked_tile(const ConvPush& c) {
+  BlockedTile t;
+  if (c.wout <= kMaxRowTile) {
+    t.px = c.wout;
+  } else {  // the fewest computed pixels per row, then the widest block
+    std::uint32_t best = ~0u;
+    // Strided: at most 12, so that 8 channels fit (their input rows are long).
+    const std::uint32_t max_px = c.sx == 1 ? kMaxRowTile : kMaxTileAccumulators / 2;
+    for (std::uint32_t px = max_px; px >= 4; --px) {
+      if (px * c.sx % 4 != 0) continue;  // every block's row segment starts 4-aligned
+      const std::uint32_t slots = div_up(c.wout, px) * px;
+      if (slots < best) {
+        best = slots;
+        t.px = px;
+      }
+    }
+  }
+  if (c.sy == 1 && c.dy == 1) {
+    t.cg = 1;
+    const std::uint32_t ry_max = std::max(1u, kMaxTileAccumulators / t.px);
+    t.ry = div_up(c.hout, div_up(c.hout, ry_max));
+  } else {
+    t.cg = 2 * t.px <= kMaxTileAccumulators ? 2 : 1;
+  }
+  return t;
+}
+
 // Padded-input geometry for the blocked and depthwise kernels: every row read
-// by a block of kPx output pixels lies inside [hp, wp].
-// px: output pixels per invocation (kPx; the blocked kernel also runs 4).
-void set_padded(ConvPush& c, std::uint32_t px = kPx) {
+// by a block of px × ry output pixels lies inside [hp, wp].
+void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1) {
   c.wblocks = (c.wout + px - 1) / px;
-  c.hp = (c.hout - 1) * c.sy + (c.kh - 1) * c.dy + 1;
+  c.hp = (div_up(c.hout, ry) * ry - 1) * c.sy + (c.kh - 1) * c.dy + 1;
   // wp rounded up to 4: rows start 16-byte aligned, read as vec4 texels.
   c.wp = div_up((c.wblocks * px - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
 }
 
-// The blocked kernel's pixels per invocation: 4 on images at most 4 wide
-// (half the work of an 8-pixel block there), else 8.
-std::uint32_t blocked_px(std::uint32_t wout) { return wout <= 4 ? 4u : kPx; }
+void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry); }
 
 std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p) {
   ConvPush c = push_of(d, p);
-  set_padded(c);
+  set_padded(c, blocked_tile(c));
   return std::uint64_t(d.n) * std::uint64_t(d.cin) * c.hp * c.wp;
 }
 
@@ -294,8 +337,8 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::blocked: {
-      const std::uint32_t px = blocked_px(c.wout);
-      set_padded(c, px);
+      const BlockedTile t = blocked_tile(c);
+      set_padded(c, t);
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
@@ -307,13 +350,18 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       }
       const Tensor& yt = y_padded != nullptr ? y_padded->data : y;
       // (pixel block, channel block) pairs, flattened (the shader splits them).
-      const std::uint64_t blocks = std::uint64_t(c.hout) * c.wblocks * div_up(c.cout, kCoBlock);
-      Groups g = groups_1d(div_up(blocks, kBlockedGroup), info);
+      const std::uint64_t blocks =
+          std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * div_up(c.cout, 4 * t.cg);
+      // Lanes per workgroup: 64, or fewer when that leaves some CPU threads
+      // without a workgroup (llvmpipe gives each thread whole workgroups).
+      std::uint32_t wg = kBlockedGroup;
+      while (wg > 8 && blocks * c.n < std::uint64_t(wg) * 4) wg /= 2;
+      Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx, px});
+                      c, g, {c.kh, c.kw, c.sx, c.dx, t.px, t.cg, t.ry, wg});
       return;
     }
     case Conv2dAlgo::depthwise: {
@@ -399,7 +447,7 @@ namespace {
 // The padded input geometry the blocked kernel reads for these shapes.
 Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x) {
   ConvPush c = push_of(d, p);
-  set_padded(c, blocked_px(c.wout));
+  set_padded(c, blocked_tile(c));
   Conv2dPadded l;
   l.shape = x;
   l.hp = c.hp;

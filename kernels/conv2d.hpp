@@ -27,13 +27,16 @@
 //
 // Variants (chosen in one place, conv2d_select(); all tested):
 //   direct     any parameters; one output per invocation (slow fallback).
-//   blocked    groups == 1, KH, KW <= 7, stride_x, dilation_x <= 4: 8 output
-//              channels × 8 output pixels per invocation; the input is
+//   blocked    groups == 1, KH, KW <= 7, stride_x, dilation_x <= 4: a tile of
+//              4 or 8 output channels × 1..25 rows × up to 20 pixels per
+//              invocation, chosen per shape (a row of up to 20 pixels is one
+//              block, so small planes waste no lanes); the input is
 //              zero-padded into a temporary (one cheap pass) and read as vec4
 //              texels, weights packed to [Cout/8][Cin][KH][KW][8] (per call,
 //              or once with conv2d_pack_weight) and read as vec4 texels; KH/KW/stride_x/
-//              dilation_x are specialization constants. 3×3 64→64 128² on
-//              lavapipe (shared 2-core machine): 10–17 GFLOP/s.
+//              dilation_x and the tile are specialization constants. 3×3 64→64
+//              128² on lavapipe (shared 2-core machine): 26–32 GFLOP/s; the
+//              face ResNet's 35²..2² planes: ~40.
 //   pointwise  1×1, stride 1, no padding, groups == 1 (a matmul): 8 channels ×
 //              8 consecutive pixels per invocation (vec4 reads when H·W % 4 == 0).
 //   depthwise  groups == Cin, Cout a multiple of Cin (channel multiplier):

@@ -1,27 +1,31 @@
 #version 450
-// conv2d forward, groups == 1: each invocation computes 8 output channels × PX
-// (8, or 4 on images at most 4 wide) consecutive output pixels of one row
-// (2·PX vec4 accumulators). Invocations run over (pixel block, channel block)
-// flattened, so small images with many channels still fill whole workgroups
-// (llvmpipe runs 8 lanes at a time and pays per workgroup). The input is
-// the zero-padded copy from conv2d_pad (no bounds checks in the loop); one row
-// segment is loaded once per (channel, ky) as vec4 texels and reused across
-// kx. Weights are packed by conv2d_pack: 8 channels per tap as two vec4
-// texels. See LAVAPIPE.md: texel-buffer reads, no shared memory, several
-// outputs per invocation. Measured on lavapipe (3×3 64→64 128²): scalar input
-// reads 3.5–4 GFLOP/s, vec4 input reads 12–17; weights through a 64 KiB UBO
-// (chunked dispatches) were slower than through this texel buffer.
+// conv2d forward, groups == 1: each invocation computes 4·CG output channels ×
+// RY rows × PX consecutive output pixels (CG·RY·PX vec4 accumulators, ≤ 16).
+// Invocations run over (pixel block, channel block) flattened, so small images
+// with many channels still fill whole workgroups (llvmpipe runs 8 lanes at a
+// time and pays per workgroup). The input is the zero-padded copy from
+// conv2d_pad or a producer's padded output (no bounds checks in the loop);
+// one row segment is loaded once per (channel, input row) as vec4 texels and
+// reused across kx and the RY output rows. Weights are packed by conv2d_pack:
+// 8 channels per tap as two vec4 texels; an invocation of 4 channels reads
+// one of them. See LAVAPIPE.md: texel-buffer reads, no shared memory, several
+// outputs per invocation. On lavapipe a weight texel fetch (the same address
+// in every lane) costs about twice an input one, so the shapes pick (CG, RY)
+// to read fewer weights per FMA (kernels/conv2d.cpp, blocked_tile).
 #define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
-layout(local_size_x = 64) in;
+layout(local_size_x_id = 7) in;  // 8..64: fewer lanes per group on small outputs
 layout(constant_id = 0) const uint KH = 3u;
 layout(constant_id = 1) const uint KW = 3u;
 layout(constant_id = 2) const uint SX = 1u;
 layout(constant_id = 3) const uint DX = 1u;
 layout(constant_id = 4) const uint PX = 8u;
+layout(constant_id = 5) const uint CG = 2u;  // vec4 channel groups per invocation (1 or 2)
+layout(constant_id = 6) const uint RY = 1u;  // output rows per invocation (RY > 1: sy = dy = 1)
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;  // input columns one row needs
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
+const uint NR = RY + KH - 1u;       // input rows of one block when RY > 1
 
 layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp], zero-padded
 layout(binding = 1) uniform samplerBuffer packed;  // RGBA32F: [cout/8][cin][kh][kw][2]
@@ -29,37 +33,61 @@ layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
 
 void main() {
-  const uint npb = pc.hout * pc.wblocks;
-  const uint idx = linear_group() * 64u + gl_LocalInvocationID.x;
-  const uint cob = idx / npb;
-  if (cob >= (pc.cout + 7u) / 8u) return;
+  const uint rblocks = (pc.hout + RY - 1u) / RY;
+  const uint npb = rblocks * pc.wblocks;
+  const uint idx = linear_group() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+  const uint cob = idx / npb;  // block of 4·CG output channels
+  if (cob >= (pc.cout + 4u * CG - 1u) / (4u * CG)) return;
   const uint pb = idx - cob * npb;
   const uint n = gl_WorkGroupID.z;
-  const uint oy = pb / pc.wblocks;
+  const uint oy0 = (pb / pc.wblocks) * RY;
   const uint ox0 = (pb % pc.wblocks) * PX;
+  const uint co0 = cob * 4u * CG;
 
-  vec4 a0[PX], a1[PX];
-  [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    a0[p] = vec4(0.0);
-    a1[p] = vec4(0.0);
-  }
+  vec4 a[CG * RY * PX];  // a[(g · RY + r) · PX + p]
+  [[unroll]] for (uint i = 0u; i < CG * RY * PX; ++i) a[i] = vec4(0.0);
   const int plane = int(pc.hp * pc.wp / 4u);
   const int row_step = int(pc.dy * pc.wp / 4u);
-  int xbase = int((((n * pc.cin) * pc.hp + oy * pc.sy) * pc.wp + ox0 * SX) / 4u);
-  int wbase = int(cob * pc.cin * KH * KW * 2u);
+  int xbase = int((((n * pc.cin) * pc.hp + oy0 * pc.sy) * pc.wp + ox0 * SX) / 4u);
+  // Packed texel of (channel block of 8, cin, tap, half): ((cb8·cin + c)·KH·KW + tap)·2 + half.
+  int wbase = int((co0 / 8u) * pc.cin * KH * KW * 2u + (co0 % 8u) / 4u);
   for (uint c = 0u; c < pc.cin; ++c) {
-    [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-      const int rb = xbase + int(ky) * row_step;
-      vec4 r[SEG4];
-      [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = texelFetch(xp, rb + int(j));
-      [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
-        const int wi = wbase + int((ky * KW + kx) * 2u);
-        const vec4 w0 = texelFetch(packed, wi);
-        const vec4 w1 = texelFetch(packed, wi + 1);
-        [[unroll]] for (uint p = 0u; p < PX; ++p) {
-          const float v = r[(p * SX + kx * DX) / 4u][(p * SX + kx * DX) % 4u];
-          a0[p] = fma(vec4(v), w0, a0[p]);
-          a1[p] = fma(vec4(v), w1, a1[p]);
+    if (RY == 1u) {
+      [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+        const int rb = xbase + int(ky) * row_step;
+        vec4 r[SEG4];
+        [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = texelFetch(xp, rb + int(j));
+        [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
+          const int wi = wbase + int((ky * KW + kx) * 2u);
+          vec4 w[CG];
+          [[unroll]] for (uint g = 0u; g < CG; ++g) w[g] = texelFetch(packed, wi + int(g));
+          [[unroll]] for (uint p = 0u; p < PX; ++p) {
+            const float v = r[(p * SX + kx * DX) / 4u][(p * SX + kx * DX) % 4u];
+            [[unroll]] for (uint g = 0u; g < CG; ++g) a[g * PX + p] = fma(vec4(v), w[g], a[g * PX + p]);
+          }
+        }
+      }
+    } else {
+      vec4 r[NR * SEG4];
+      [[unroll]] for (uint i = 0u; i < NR; ++i) {
+        [[unroll]] for (uint j = 0u; j < SEG4; ++j) {
+          r[i * SEG4 + j] = texelFetch(xp, xbase + int(i * pc.wp / 4u + j));
+        }
+      }
+      [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+        [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
+          const int wi = wbase + int((ky * KW + kx) * 2u);
+          vec4 w[CG];
+          [[unroll]] for (uint g = 0u; g < CG; ++g) w[g] = texelFetch(packed, wi + int(g));
+          [[unroll]] for (uint q = 0u; q < RY; ++q) {
+            [[unroll]] for (uint p = 0u; p < PX; ++p) {
+              const uint col = p * SX + kx * DX;
+              const float v = r[(q + ky) * SEG4 + col / 4u][col % 4u];
+              [[unroll]] for (uint g = 0u; g < CG; ++g) {
+                a[(g * RY + q) * PX + p] = fma(vec4(v), w[g], a[(g * RY + q) * PX + p]);
+              }
+            }
+          }
         }
       }
     }
@@ -67,27 +95,24 @@ void main() {
     wbase += int(KH * KW * 2u);
   }
 
-  float b[8];
-  [[unroll]] for (uint j = 0u; j < 8u; ++j) {
-    const uint co = cob * 8u + j;
-    b[j] = (pc.has_bias != 0u && co < pc.cout) ? texelFetch(bias, int(co)).r : 0.0;
-  }
   // y: planes of yh × yw with the output at (ytop, yleft): hout × wout
   // itself, or the zero-padded input of the next conv (conv2d_padded_input).
-  const uint hw = pc.yh * pc.yw;
-  const uint obase = (n * pc.cout + cob * 8u) * hw + (oy + pc.ytop) * pc.yw + ox0 + pc.yleft;
   // A padded y may end before the output does (its consumer reads no further).
-  if (oy + pc.ytop >= pc.yh) return;
-  [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    if (ox0 + p < pc.wout && ox0 + p + pc.yleft < pc.yw) {
-      [[unroll]] for (uint j = 0u; j < 4u; ++j) {
-        const uint c0 = cob * 8u + j, c1 = c0 + 4u;
-        if (c0 < pc.cout) {
-          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual_at(n, c0, oy, ox0 + p));
-        }
-        if (c1 < pc.cout) {
-          y[obase + (4u + j) * hw + p] =
-              conv_act(a1[p][j] + b[4u + j] + conv_residual_at(n, c1, oy, ox0 + p));
+  const uint hw = pc.yh * pc.yw;
+  [[unroll]] for (uint g = 0u; g < CG; ++g) {
+    [[unroll]] for (uint j = 0u; j < 4u; ++j) {
+      const uint co = co0 + g * 4u + j;
+      if (co >= pc.cout) continue;
+      const float b = pc.has_bias != 0u ? texelFetch(bias, int(co)).r : 0.0;
+      [[unroll]] for (uint q = 0u; q < RY; ++q) {
+        const uint oy = oy0 + q;
+        if (oy >= pc.hout || oy + pc.ytop >= pc.yh) continue;
+        const uint orow = (n * pc.cout + co) * hw + (oy + pc.ytop) * pc.yw + pc.yleft;
+        [[unroll]] for (uint p = 0u; p < PX; ++p) {
+          const uint ox = ox0 + p;
+          if (ox < pc.wout && ox + pc.yleft < pc.yw) {
+            y[orow + ox] = conv_act(a[(g * RY + q) * PX + p][j] + b + conv_residual_at(n, co, oy, ox));
+          }
         }
       }
     }

@@ -122,6 +122,15 @@ std::vector<Case> edge_cases() {
   c.p.stride_y = c.p.stride_x = 2;
   c.p.pad = {};
   cases.push_back(c);
+  c.d = {1, 5, 7, 46, 11, 3, 3};  // rows wider than one pixel block, 2 pixels of the last unused
+  c.p = {};
+  c.p.pad = kernels::same_padding(7, 46, 3, 3, 1, 1);
+  cases.push_back(c);
+  c.d = {1, 3, 9, 61, 16, 7, 7};  // strided wide rows: 4-pixel blocks, 8 channels
+  c.p.stride_y = c.p.stride_x = 2;
+  c.p.pad = {};
+  c.p.activation = Activation::relu;
+  cases.push_back(c);
   c.d = {1, 32, 9, 9, 32, 3, 3};
   c.p = {};
   c.p.groups = 32;
