@@ -15,7 +15,8 @@ struct PoolPush {
   std::int32_t kh, kw, sh, sw;
   std::int32_t pad_top, pad_left, pad_bottom, pad_right;
   std::uint32_t flag;
-  Magic blocks_magic, rows_magic;  // blocks per row, rows per plane of the written tensor
+  Magic blocks_magic, rows_magic;          // blocks per row, rows per plane of the written tensor
+  std::uint32_t y_plane, y_row, y_offset;  // pool_max: y's layout (plain or a padded interior)
 };
 static_assert(sizeof(PoolPush) <= 128);
 
@@ -57,7 +58,10 @@ PoolPush make_push(const Shape& x, const Shape& y, const Pool2d& p, std::uint32_
                   p.pad_right,
                   flag,
                   magic(div_up(written[3], 4)),
-                  magic(static_cast<std::uint64_t>(written[2]))};
+                  magic(static_cast<std::uint64_t>(written[2])),
+                  static_cast<std::uint32_t>(y[2] * y[3]),
+                  static_cast<std::uint32_t>(y[3]),
+                  0};
 }
 
 // Groups for 4 consecutive pixels of one row per invocation.
@@ -118,22 +122,60 @@ Shape pool_output_shape(const Shape& x, const Pool2d& p) {
   return Shape{x[0], x[1], oh, ow};
 }
 
-void max_pool2d(Stream& stream, const Tensor& x, const Pool2d& p, const Tensor& y,
-                const Tensor& indices) {
+namespace {
+
+constexpr std::int32_t kMaxUnrolledWindow = 7;  // pool_max: windows up to 7×7 unroll
+
+// pool_max into y (its layout in push), indices when defined.
+void run_max_pool(Stream& stream, const Tensor& x, const Pool2d& p, const Tensor& y,
+                  const Tensor& indices, const PoolPush& push, const Shape& ys) {
   static const KernelDef k{"pool_max",
                            {BindingKind::texel, BindingKind::storage, BindingKind::storage},
                            sizeof(PoolPush)};
+  const bool unrolled = p.kernel_h <= kMaxUnrolledWindow && p.kernel_w <= kMaxUnrolledWindow;
+  const bool with_indices = indices.defined();
+  stream.dispatch(k, {texel(x), out(y), out(with_indices ? indices : y)}, push,
+                  row_groups(ys, stream.device().info()),
+                  {unrolled ? std::uint32_t(p.kernel_h) : 0u,
+                   unrolled ? std::uint32_t(p.kernel_w) : 0u, with_indices ? 1u : 0u});
+}
+
+}  // namespace
+
+void max_pool2d(Stream& stream, const Tensor& x, const Pool2d& p, const Tensor& y,
+                const Tensor& indices) {
   const char* op = "max_pool2d";
   require_f32_rank(x, 4, op, "x");
   const Shape ys = pool_output_shape(x.shape(), p);
   require_f32(y, op, "y");
   require_shape(y, ys, op, "y");
-  if (!indices.defined() || indices.dtype() != DType::i32) {
-    throw InvalidArgument(op, "indices must be an i32 tensor", "allocate it with DType::i32");
+  if (indices.defined()) {
+    if (indices.dtype() != DType::i32) {
+      throw InvalidArgument(op, "indices must be an i32 tensor", "allocate it with DType::i32");
+    }
+    require_shape(indices, ys, op, "indices");
   }
-  require_shape(indices, ys, op, "indices");
-  stream.dispatch(k, {texel(x), out(y), out(indices)}, make_push(x.shape(), ys, p, 0, ys),
-                  row_groups(ys, stream.device().info()));
+  run_max_pool(stream, x, p, y, indices, make_push(x.shape(), ys, p, 0, ys), ys);
+}
+
+void max_pool2d_into_padded(Stream& stream, const Tensor& x, const Pool2d& p,
+                            const Conv2dPadded& y) {
+  const char* op = "max_pool2d_into_padded";
+  require_f32_rank(x, 4, op, "x");
+  const Shape ys = pool_output_shape(x.shape(), p);
+  if (!y.defined() || !(y.shape == ys) || y.top < 0 || y.left < 0 ||
+      std::int64_t(y.hp) < y.top + ys[2] || std::int64_t(y.wp) < y.left + ys[3] ||
+      y.data.numel() != ys[0] * ys[1] * std::int64_t(y.hp) * std::int64_t(y.wp)) {
+    throw InvalidArgument(op,
+                          "y must be a padded tensor of the pool's output shape " + ys.str() +
+                              (y.defined() ? ", got one of " + y.shape.str() : ", got none"),
+                          "make it with conv2d_padded_input for the pool's output shape");
+  }
+  PoolPush push = make_push(x.shape(), ys, p, 0, ys);
+  push.y_plane = y.hp * y.wp;
+  push.y_row = y.wp;
+  push.y_offset = std::uint32_t(y.top) * y.wp + std::uint32_t(y.left);
+  run_max_pool(stream, x, p, y.data, Tensor(), push, ys);
 }
 
 void max_pool2d_backward(Stream& stream, const Tensor& dy, const Tensor& indices, const Pool2d& p,

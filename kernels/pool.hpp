@@ -2,6 +2,7 @@
 // average and global average, forward and backward.
 #pragma once
 
+#include <vkjr2/kernels/conv2d.hpp>
 #include <vkjr2/runtime/stream.hpp>
 
 #include <cstdint>
@@ -35,9 +36,14 @@ Shape pool_output_shape(const Shape& x, const Pool2d& p);
 // indices: same shape, i32, the flat index h·W + w of the maximum inside its
 // input plane (first maximum in row-major window order on ties). NaN
 // propagates as in PyTorch: a window holding a NaN outputs NaN, and its index
-// is that of the last NaN.
+// is that of the last NaN. indices may be undefined (inference: not written).
 void max_pool2d(Stream& stream, const Tensor& x, const Pool2d& p, const Tensor& y,
                 const Tensor& indices);
+// max_pool2d with y written into the interior of a conv's zero-padded input
+// (conv2d_padded_input for the pool's output shape; no indices), so that conv
+// needs no padding pass.
+void max_pool2d_into_padded(Stream& stream, const Tensor& x, const Pool2d& p,
+                            const Conv2dPadded& y);
 // dx[n,c,h,w] = Σ dy over the windows whose saved index is (h, w). Written as
 // a gather over the windows covering each input pixel: deterministic, dx fully
 // overwritten. dx: [N, C, H, W] (the input's shape).

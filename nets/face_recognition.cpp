@@ -1,5 +1,7 @@
 #include <vkjr2/kernels/elementwise.hpp>
 #include <vkjr2/kernels/layout.hpp>
+#include <vkjr2/kernels/matmul.hpp>
+#include <vkjr2/kernels/pool.hpp>
 #include <vkjr2/nets/face_recognition.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
@@ -8,6 +10,7 @@
 #include <array>
 #include <cmath>
 #include <set>
+#include <span>
 #include <string>
 
 namespace vkjr2::nets {
@@ -180,6 +183,27 @@ class FaceRecognitionNet::ConvLayer : public Module {
     kernel_ = kernel;
   }
 
+  // Folds the input normalization x·scale + shift (per input channel) into
+  // the folded weights too; forward() then takes the raw input when it folds
+  // (and the caller applies the normalization itself when it does not).
+  // Exact for this 'valid' conv (no zero taps): conv(x·s + t) = conv_{w·s}(x)
+  // + Σ_{ci,ky,kx} w·t.
+  void fold_input_affine(const Device& device, std::span<const float> scale,
+                         std::span<const float> shift) {
+    const Shape& ws = filters_.shape();
+    if (!down_ || std::int64_t(scale.size()) != ws[1] || std::int64_t(shift.size()) != ws[1]) {
+      throw Error("FaceRecognitionNet",
+                  "an input affine folded into a padded conv or of " +
+                      std::to_string(scale.size()) + " channels",
+                  "fold it into the 'valid' first conv only");
+    }
+    in_scale_ = Tensor::from(device, Shape{ws[1]}, std::vector<float>(scale.begin(), scale.end()));
+    std::vector<float> taps(std::size_t(ws[1] * ws[2] * ws[3]));
+    for (std::size_t i = 0; i < taps.size(); ++i) taps[i] = shift[i / std::size_t(ws[2] * ws[3])];
+    in_shift_taps_ = Tensor::from(device, Shape{ws[1] * ws[2] * ws[3], 1}, taps);
+    folded_filters_ = Var();  // refold
+  }
+
   // Whether forward() folds the scale layer (no parameter needs a gradient):
   // only then can it take a residual.
   bool folds(const Tape& t) const { return !t.needs_grad({&filters_, &bias_, &scale_, &shift_}); }
@@ -244,6 +268,16 @@ class FaceRecognitionNet::ConvLayer : public Module {
     Tensor fb = Tensor::empty(stream.device(), Shape{ws[0]});
     k::channel_affine(stream, bias_.value().reshape(column), scale_.value(), shift_.value(),
                       fb.reshape(column));
+    if (in_scale_.defined()) {  // see fold_input_affine
+      Tensor taps_sum = Tensor::empty(stream.device(), Shape{ws[0], 1});
+      k::matmul(stream, fw.reshape(Shape{ws[0], ws[1] * ws[2] * ws[3]}), in_shift_taps_, taps_sum);
+      Tensor fb_in = Tensor::empty(stream.device(), Shape{ws[0]});
+      k::add(stream, fb, taps_sum.reshape(Shape{ws[0]}), fb_in);
+      Tensor fw_in = Tensor::empty(stream.device(), ws);
+      k::mul_channel(stream, fw, in_scale_, fw_in);  // OIHW: the input channel is dim 1
+      fw = fw_in;
+      fb = fb_in;
+    }
     folded_filters_ = Var(fw);
     folded_bias_ = Var(fb);
     folded_packed_.get(stream, folded_filters_);
@@ -252,6 +286,7 @@ class FaceRecognitionNet::ConvLayer : public Module {
 
  private:
   Var filters_, bias_, scale_, shift_;
+  Tensor in_scale_, in_shift_taps_;  // fold_input_affine: [Cin] and [Cin·KH·KW, 1]
   mutable Var folded_filters_, folded_bias_;
   mutable std::array<std::uint64_t, 4> folded_versions_{};
   ConvWeightCache folded_packed_;
@@ -424,6 +459,7 @@ FaceRecognitionNet::FaceRecognitionNet(const Device& device, const TfjsWeights& 
   for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
   input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
   input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+  conv32_down_->fold_input_affine(device, scale, shift);
 
   // The scale layers folded into the convs and their weights packed, once at
   // load (again only after a parameter changed).
@@ -456,12 +492,24 @@ Var FaceRecognitionNet::forward(Tape& t, const Var& rgb) const {
         "crop the face and resize it with to_recognition_input (pads to a square, then 150×150)");
   }
   // normalize(x, meanRgb) / 255 (FaceRecognitionNet.ts).
-  Var x = channel_affine(t, rgb, input_scale_, input_shift_);
+  // The normalization is folded into conv32_down's folded weights.
+  Var x = conv32_down_->folds(t) ? rgb : channel_affine(t, rgb, input_scale_, input_shift_);
   x = conv32_down_->forward(t, x, true);
-  x = max_pool2d(t, x, k::pool_valid(3, 3, 2, 2));
-  // Inference: a block writes its output straight into the next one's
-  // padded conv1 input when both run inference and the next is no down block.
+  const k::Pool2d pool = k::pool_valid(3, 3, 2, 2);
+  // Inference: the max pool and each block write their output straight into
+  // the next block's padded conv1 input when that block runs inference and is
+  // no down block.
   k::Conv2dPadded xp;  // defined: the block input, held only there (x undefined)
+  const Shape pooled = k::pool_output_shape(x.shape(), pool);
+  if (!t.needs_grad({&x}) && blocks_.front()->infers(t, pooled)) {
+    xp = blocks_.front()->padded_input(t, pooled);
+  }
+  if (xp.defined()) {
+    k::max_pool2d_into_padded(t.stream(), x.value(), pool, xp);
+    x = Var();
+  } else {
+    x = max_pool2d(t, x, pool);
+  }
   for (std::size_t i = 0; i < blocks_.size(); ++i) {
     const Residual* block = blocks_[i];
     const Shape xs = xp.defined() ? xp.shape : x.shape();

@@ -312,7 +312,9 @@ Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias) {
 Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p) {
   const Shape shape = k::pool_output_shape(x.shape(), p);
   Tensor y = empty(x, shape);
-  Tensor indices = Tensor::empty(x.value().device(), shape, DType::i32);
+  // The argmax indices only when the backward can run.
+  Tensor indices;
+  if (t.needs_grad({&x})) indices = Tensor::empty(x.value().device(), shape, DType::i32);
   k::max_pool2d(t.stream(), x.value(), p, y, indices);
   return finish(t, y, {&x}, [x, p, indices](Tape& tape, const Tensor& dy) {
     GradSlot gx = tape.slot(x);

@@ -43,6 +43,8 @@ std::vector<Case> cases(std::uint32_t seed) {
       {2, 1, 13, 17, kernels::pool_same(3, 3, 1, 1, 13, 17)},
       {1, 3, 31, 29, Pool2d{3, 2, 2, 1, 1, 2, 0, 1}},
       {1, 1, 67, 5, kernels::pool_same(2, 2, 2, 2, 67, 5)},
+      {1, 2, 23, 19, Pool2d{9, 8, 3, 2, 4, 1, 0, 7}},    // wider than the unrolled 7×7
+      {1, 32, 72, 72, kernels::pool_valid(3, 3, 2, 2)},  // the face ResNet's
   };
   std::mt19937 rng(seed);
   auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
@@ -115,6 +117,31 @@ TEST(PoolKernels, MaxPoolMatchesReference) {
     EXPECT_EQ(download_i32(idx), r.indices);
     expect_close(dx.download(), ref::max_pool2d_backward(dyv, r.indices, k.n * k.c, k.h, k.w, k.p),
                  1e-5, "dx");
+
+    // Inference forms: no indices; into the zero-padded input of a 3×3
+    // 'same' conv (the interior is the pool, the border stays zero).
+    Tensor y2 = Tensor::empty(dev, ys);
+    kernels::max_pool2d(s, x, k.p, y2, Tensor());
+    kernels::Conv2dParams cp;
+    cp.pad = kernels::same_padding(ys[2], ys[3], 3, 3, 1, 1);
+    cp.algo = kernels::Conv2dAlgo::blocked;  // (one channel would run depthwise)
+    const kernels::Conv2dPadded yp = kernels::conv2d_padded_input(s, ys, Shape{8, ys[1], 3, 3}, cp);
+    ASSERT_TRUE(yp.defined());
+    kernels::max_pool2d_into_padded(s, x, k.p, yp);
+    s.run();
+    EXPECT_EQ(y2.download(), r.y);
+    const auto padded = yp.data.download();
+    for (std::int64_t pl = 0; pl < ys[0] * ys[1]; ++pl) {
+      for (std::int64_t i = 0; i < std::int64_t(yp.hp); ++i) {
+        for (std::int64_t j = 0; j < std::int64_t(yp.wp); ++j) {
+          const std::int64_t oy = i - yp.top, ox = j - yp.left;
+          const bool inside = oy >= 0 && oy < ys[2] && ox >= 0 && ox < ys[3];
+          const float want = inside ? r.y[std::size_t((pl * ys[2] + oy) * ys[3] + ox)] : 0.f;
+          ASSERT_EQ(padded[std::size_t((pl * yp.hp + i) * yp.wp + j)], want)
+              << "padded plane " << pl << " at " << i << "," << j;
+        }
+      }
+    }
   }
 }
 
@@ -265,6 +292,16 @@ TEST(PoolKernels, BadInputsAreClearErrors) {
   Tensor wrong = Tensor::empty(dev, {1, 2, 3, 4});
   EXPECT_THROW(kernels::avg_pool2d(s, x, p, false, wrong), InvalidArgument);
   EXPECT_THROW(kernels::max_pool2d(s, x, p, y, y), InvalidArgument);  // f32 indices
+  kernels::Conv2dParams same;
+  same.pad = {1, 1, 1, 1};
+  const kernels::Conv2dPadded for_8x8 =
+      kernels::conv2d_padded_input(s, x.shape(), {4, 2, 3, 3}, same);
+  try {  // a padded tensor of another shape
+    kernels::max_pool2d_into_padded(s, x, p, for_8x8);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("[1, 2, 4, 4]"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(kernels::max_pool2d(s, x, Pool2d{2, 2, 2, 2, 2, 0, 0, 0}, y, idx), InvalidArgument);
   EXPECT_THROW(kernels::avg_pool2d(s, x, Pool2d{0, 2, 2, 2, 0, 0, 0, 0}, false, y),
                InvalidArgument);
