@@ -211,9 +211,15 @@ void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1) {
 
 void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry); }
 
-std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p) {
+// Elements of the padded input the blocked (its tile's geometry) or the
+// depthwise kernel (8-pixel blocks, one row) reads.
+std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p, bool blocked = true) {
   ConvPush c = push_of(d, p);
-  set_padded(c, blocked_tile(c));
+  if (blocked) {
+    set_padded(c, blocked_tile(c));
+  } else {
+    set_padded(c);
+  }
   return std::uint64_t(d.n) * std::uint64_t(d.cin) * c.hp * c.wp;
 }
 
@@ -244,7 +250,8 @@ std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, cons
     case Conv2dAlgo::depthwise:
       if (p.groups != d.cin || d.cout % d.cin != 0) return "needs groups == Cin";
       if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
-      if (padded_elements(d, p) > texel_limit) return "the padded input exceeds the texel limit";
+      if (padded_elements(d, p, false) > texel_limit)
+        return "the padded input exceeds the texel limit";
       return {};
   }
   return "unknown variant";

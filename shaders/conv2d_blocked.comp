@@ -1,6 +1,6 @@
 #version 450
 // conv2d forward, groups == 1: each invocation computes 4·CG output channels ×
-// RY rows × PX consecutive output pixels (CG·RY·PX vec4 accumulators, ≤ 16).
+// RY rows × PX consecutive output pixels (CG·RY·PX vec4 accumulators, ≤ 25).
 // Invocations run over (pixel block, channel block) flattened, so small images
 // with many channels still fill whole workgroups (llvmpipe runs 8 lanes at a
 // time and pays per workgroup). The input is the zero-padded copy from
@@ -63,7 +63,9 @@ void main() {
           [[unroll]] for (uint g = 0u; g < CG; ++g) w[g] = texelFetch(packed, wi + int(g));
           [[unroll]] for (uint p = 0u; p < PX; ++p) {
             const float v = r[(p * SX + kx * DX) / 4u][(p * SX + kx * DX) % 4u];
-            [[unroll]] for (uint g = 0u; g < CG; ++g) a[g * PX + p] = fma(vec4(v), w[g], a[g * PX + p]);
+            [[unroll]] for (uint g = 0u; g < CG; ++g) {
+              a[g * PX + p] = fma(vec4(v), w[g], a[g * PX + p]);
+            }
           }
         }
       }
@@ -111,7 +113,8 @@ void main() {
         [[unroll]] for (uint p = 0u; p < PX; ++p) {
           const uint ox = ox0 + p;
           if (ox < pc.wout && ox + pc.yleft < pc.yw) {
-            y[orow + ox] = conv_act(a[(g * RY + q) * PX + p][j] + b + conv_residual_at(n, co, oy, ox));
+            const float v = a[(g * RY + q) * PX + p][j] + b + conv_residual_at(n, co, oy, ox);
+            y[orow + ox] = conv_act(v);
           }
         }
       }
