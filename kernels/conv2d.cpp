@@ -25,14 +25,17 @@ struct ConvPush {
   std::uint32_t cres;
   std::uint32_t yh, yw;
   std::uint32_t ytop, yleft;
+  std::uint32_t xrelu;
 };
-static_assert(sizeof(ConvPush) == 30 * 4 && sizeof(ConvPush) <= 128);
+static_assert(sizeof(ConvPush) == 31 * 4 && sizeof(ConvPush) <= 128);
 
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
 constexpr std::uint32_t kBlockedGroup = 64;
 constexpr std::uint32_t kMaxRowTile = 20;  // blocked: rows up to this wide are one pixel block
 constexpr std::uint32_t kMaxTileAccumulators = 25;  // blocked: vec4 accumulators per invocation
+constexpr std::uint32_t kMaxDwRowTile = 16;         // depthwise: rows up to this wide are one block
+constexpr std::uint32_t kMaxDwAccumulators = 32;    // depthwise: px · ry floats per invocation
 constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
 constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
 constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
@@ -153,6 +156,7 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
   c.cout_g = std::uint32_t(d.cout / p.groups);
   c.yh = c.hout;
   c.yw = c.wout;
+  c.xrelu = p.relu_input ? 1u : 0u;
   return c;
 }
 
@@ -211,16 +215,65 @@ void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1) {
 
 void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry); }
 
-// Elements of the padded input the blocked (its tile's geometry) or the
-// depthwise kernel (8-pixel blocks, one row) reads.
-std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p, bool blocked = true) {
-  ConvPush c = push_of(d, p);
-  if (blocked) {
-    set_padded(c, blocked_tile(c));
+// The depthwise kernel's tile: one channel × ry rows × px pixels (px · ry
+// float accumulators). A row of up to kMaxDwRowTile pixels is one block;
+// wider rows take the 8..16-pixel block that computes the fewest pixels
+// (strided: 8). Stride 1 stacks rows up to kMaxDwAccumulators, split evenly:
+// the KH − 1 input rows the outputs share are read once, and the 9 weights
+// once per px · ry outputs (on lavapipe the weight fetches, the same address
+// in every lane, cost as much as the FMAs).
+BlockedTile depthwise_tile(const ConvPush& c) {
+  BlockedTile t;
+  t.cg = 1;
+  if (c.wout <= kMaxDwRowTile) {
+    t.px = c.wout;
+  } else if (c.sx == 1) {
+    std::uint32_t best = ~0u;
+    for (std::uint32_t px = kMaxDwRowTile; px >= 8; px -= 4) {
+      const std::uint32_t slots = div_up(c.wout, px) * px;
+      if (slots < best) {
+        best = slots;
+        t.px = px;
+      }
+    }
   } else {
-    set_padded(c);
+    t.px = 8;
   }
+  if (c.sy == 1 && c.dy == 1) {
+    const std::uint32_t ry_max = std::clamp(kMaxDwAccumulators / t.px, 1u, 4u);
+    t.ry = div_up(c.hout, div_up(c.hout, ry_max));
+  }
+  return t;
+}
+
+// The tile of the variants that read a padded input (blocked, depthwise).
+BlockedTile padded_tile(const ConvPush& c, Conv2dAlgo algo) {
+  return algo == Conv2dAlgo::depthwise ? depthwise_tile(c) : blocked_tile(c);
+}
+
+// Elements of the padded input the blocked or depthwise kernel (its tile's
+// geometry) reads.
+std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p, Conv2dAlgo algo) {
+  ConvPush c = push_of(d, p);
+  set_padded(c, padded_tile(c, algo));
   return std::uint64_t(d.n) * std::uint64_t(d.cin) * c.hp * c.wp;
+}
+
+// Lanes per workgroup for `blocks` invocations per image: 64, or fewer when
+// that would leave some CPU threads without a workgroup (llvmpipe gives each
+// thread whole workgroups).
+std::uint32_t group_lanes(std::uint64_t invocations) {
+  std::uint32_t wg = kBlockedGroup;
+  while (wg > 8 && invocations < std::uint64_t(wg) * 4) wg /= 2;
+  return wg;
+}
+
+// The backward kernels differentiate conv(x), not conv(relu(x)).
+void refuse_relu_input(const char* op, const Conv2dParams& p) {
+  if (p.relu_input) {
+    throw InvalidArgument(op, "relu_input is forward only",
+                          "apply the ReLU as its own op where a gradient is needed");
+  }
 }
 
 bool small_kernel(const Dims& d, const Conv2dParams& p) {
@@ -238,10 +291,14 @@ std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, cons
       return {};
     case Conv2dAlgo::blocked:
       if (p.groups != 1) return "needs groups == 1";
+      if (p.relu_input) return "takes no input ReLU";
       if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
-      if (padded_elements(d, p) > texel_limit) return "the padded input exceeds the texel limit";
+      if (padded_elements(d, p, algo) > texel_limit) {
+        return "the padded input exceeds the texel limit";
+      }
       return {};
     case Conv2dAlgo::pointwise:
+      if (p.relu_input) return "takes no input ReLU";
       if (p.groups != 1 || d.kh != 1 || d.kw != 1 || p.stride_y != 1 || p.stride_x != 1 ||
           p.pad.top != 0 || p.pad.bottom != 0 || p.pad.left != 0 || p.pad.right != 0) {
         return "needs a 1×1 kernel, stride 1, no padding and groups == 1";
@@ -250,8 +307,9 @@ std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, cons
     case Conv2dAlgo::depthwise:
       if (p.groups != d.cin || d.cout % d.cin != 0) return "needs groups == Cin";
       if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
-      if (padded_elements(d, p, false) > texel_limit)
+      if (padded_elements(d, p, algo) > texel_limit) {
         return "the padded input exceeds the texel limit";
+      }
       return {};
   }
   return "unknown variant";
@@ -302,11 +360,21 @@ Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
   return xp;
 }
 
+// y's planes in c: a padded tensor's (the output written into its interior).
+void set_y_padded(ConvPush& c, const Conv2dPadded& y) {
+  c.yh = y.hp;
+  c.yw = y.wp;
+  c.ytop = std::uint32_t(y.top);
+  c.yleft = std::uint32_t(y.left);
+}
+
 // The forward dispatch of one variant; c has everything but the padded geometry.
 // prepacked: the weight already packed (conv2d_pack_weight), else packed here.
 // residual: [N, cres, Hout, Wout] added before the activation, or nullptr.
-// Blocked only: x_padded, x's padded copy already made (x is then not read);
-// y_padded, the padded tensor to write the output into instead of y.
+// x_padded (blocked, depthwise): x's padded copy already made (x is then not
+// read); y_padded (blocked, depthwise, pointwise): the padded tensor to write
+// the output into instead of y; residual_padded (blocked: in x's padded
+// layout; pointwise: any padded layout), read instead of residual.
 void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor& weight,
                  const Tensor* bias, const Tensor& y, ConvPush c, bool transposed_weight,
                  const Tensor* prepacked = nullptr, const Tensor* residual = nullptr,
@@ -318,11 +386,13 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
   const Tensor& r_plain = residual != nullptr ? *residual : weight;  // unused when has_res == 0
   c.has_res = residual != nullptr ? 1u : 0u;
   c.cres = residual != nullptr ? std::uint32_t(residual->shape()[1]) : 0u;
-  if (residual_padded != nullptr) {  // blocked only: in x's padded layout
+  if (residual_padded != nullptr) {
     c.has_res = 2;
     c.cres = std::uint32_t(residual_padded->shape[1]);
   }
   const Tensor& r = residual_padded != nullptr ? residual_padded->data : r_plain;
+  if (y_padded != nullptr) set_y_padded(c, *y_padded);
+  const Tensor& yt = y_padded != nullptr ? y_padded->data : y;
   switch (algo) {
     case Conv2dAlgo::auto_select:
     case Conv2dAlgo::direct: {
@@ -334,13 +404,23 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
     case Conv2dAlgo::pointwise: {
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
-      const Groups g{div_up(std::uint64_t(div_up(std::uint64_t(c.h) * c.w, kPx)), kBlockedGroup),
-                     div_up(c.cout, kCoBlock), c.n};
+      if (residual_padded != nullptr) {  // the shader reads it in the (hp, wp, pt, pl) layout
+        c.hp = residual_padded->hp;
+        c.wp = residual_padded->wp;
+        c.pt = residual_padded->top;
+        c.pl = residual_padded->left;
+      }
+      // (pixel block, channel block) pairs, flattened (the shader splits them).
+      const std::uint64_t blocks =
+          div_up(std::uint64_t(c.h) * c.w, std::uint64_t(kPx)) * div_up(c.cout, kCoBlock);
+      const std::uint32_t wg = group_lanes(blocks * c.n);
+      Groups g = groups_1d(div_up(blocks, wg), info);
+      g.z = c.n;
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
       stream.dispatch(kPointwise,
                       {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(y), texel(r)},
-                      c, g, {vec4 ? 1u : 0u});
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
+                      c, g, {vec4 ? 1u : 0u, wg});
       return;
     }
     case Conv2dAlgo::blocked: {
@@ -349,20 +429,10 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
       const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
-      if (y_padded != nullptr) {
-        c.yh = y_padded->hp;
-        c.yw = y_padded->wp;
-        c.ytop = std::uint32_t(y_padded->top);
-        c.yleft = std::uint32_t(y_padded->left);
-      }
-      const Tensor& yt = y_padded != nullptr ? y_padded->data : y;
       // (pixel block, channel block) pairs, flattened (the shader splits them).
       const std::uint64_t blocks =
           std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * div_up(c.cout, 4 * t.cg);
-      // Lanes per workgroup: 64, or fewer when that leaves some CPU threads
-      // without a workgroup (llvmpipe gives each thread whole workgroups).
-      std::uint32_t wg = kBlockedGroup;
-      while (wg > 8 && blocks * c.n < std::uint64_t(wg) * 4) wg /= 2;
+      const std::uint32_t wg = group_lanes(blocks * c.n);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       stream.dispatch(kBlocked,
@@ -372,13 +442,18 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::depthwise: {
-      set_padded(c);
-      const Tensor xp = pad_input(stream, x, c);
-      const Groups g{div_up(std::uint64_t(c.hout) * c.wblocks, kBlockedGroup), c.cout, c.n};
+      const BlockedTile t = depthwise_tile(c);
+      set_padded(c, t);
+      const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
+      // (pixel block, channel) pairs, flattened (the shader splits them).
+      const std::uint64_t blocks = std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * c.cout;
+      const std::uint32_t wg = group_lanes(blocks * c.n);
+      Groups g = groups_1d(div_up(blocks, wg), info);
+      g.z = c.n;
       stream.dispatch(
           kDepthwise,
-          {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(y), texel(r)}, c,
-          g, {c.kh, c.kw, c.sx, c.dx});
+          {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(yt), texel(r)}, c,
+          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg});
       return;
     }
   }
@@ -451,10 +526,10 @@ Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight) {
 
 namespace {
 
-// The padded input geometry the blocked kernel reads for these shapes.
-Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x) {
+// The padded input geometry the blocked or depthwise kernel reads for these shapes.
+Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x, Conv2dAlgo algo) {
   ConvPush c = push_of(d, p);
-  set_padded(c, blocked_tile(c));
+  set_padded(c, padded_tile(c, algo));
   Conv2dPadded l;
   l.shape = x;
   l.hp = c.hp;
@@ -506,30 +581,48 @@ void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weig
                           "pack this weight with conv2d_pack_weight (again after it changed)");
   }
   const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
+  const bool reads_padded = algo == Conv2dAlgo::blocked || algo == Conv2dAlgo::depthwise;
+  const bool blocked = algo == Conv2dAlgo::blocked, pointwise = algo == Conv2dAlgo::pointwise;
+  const auto refuse = [&](const char* what, const char* variants) {
+    throw InvalidArgument(
+        op,
+        std::string(what) + " needs the " + variants + " variant, not " + conv2d_algo_name(algo),
+        "use conv2d (conv2d_padded_input is undefined for such convolutions)");
+  };
+  if (x_padded != nullptr && !reads_padded) refuse("a padded input", "blocked or depthwise");
+  if (y_padded != nullptr && !reads_padded && !pointwise) {
+    refuse("a padded output", "blocked, depthwise or pointwise");
+  }
+  if (residual_padded != nullptr && !blocked && !pointwise) {
+    refuse("a padded residual", "blocked or pointwise");
+  }
   if (residual_padded != nullptr) {
-    // In x's padded layout: y must have x's size (a stride-1 'same' conv).
-    const Conv2dPadded want = padded_layout(d, p, xs);
     const Conv2dPadded& r = *residual_padded;
-    const bool fits = residual == nullptr && r.defined() && r.shape.rank() == 4 &&
-                      r.shape[0] == d.n && r.shape[1] >= 1 && r.shape[1] <= d.cout &&
-                      r.shape[2] == d.h && r.shape[3] == d.w && d.hout == d.h && d.wout == d.w &&
-                      r.hp == want.hp && r.wp == want.wp && r.top == want.top &&
-                      r.left == want.left;
-    if (!fits) {
-      throw InvalidArgument(op, "the padded residual is not in this convolution's input layout",
-                            "pass one residual, padded like x (conv2d_padded_input for x's "
-                            "shape), for a convolution whose output has x's size");
+    const bool holds = residual == nullptr && r.defined() && r.shape.rank() == 4 &&
+                       r.shape[0] == d.n && r.shape[1] >= 1 && r.shape[1] <= d.cout &&
+                       r.shape[2] == d.hout && r.shape[3] == d.wout && r.top >= 0 && r.left >= 0 &&
+                       std::int64_t(r.hp) >= r.top + d.hout &&
+                       std::int64_t(r.wp) >= r.left + d.wout &&
+                       r.data.numel() == d.n * r.shape[1] * std::int64_t(r.hp) * std::int64_t(r.wp);
+    if (blocked) {
+      // In x's padded layout: y must have x's size (a stride-1 'same' conv).
+      const Conv2dPadded want = padded_layout(d, p, xs, algo);
+      const bool fits = holds && d.hout == d.h && d.wout == d.w && r.hp == want.hp &&
+                        r.wp == want.wp && r.top == want.top && r.left == want.left;
+      if (!fits) {
+        throw InvalidArgument(op, "the padded residual is not in this convolution's input layout",
+                              "pass one residual, padded like x (conv2d_padded_input for x's "
+                              "shape), for a convolution whose output has x's size");
+      }
+    } else if (!holds) {
+      throw InvalidArgument(op,
+                            "the padded residual " + r.shape.str() + " (planes " + str(r.hp) + "×" +
+                                str(r.wp) + ") does not hold a residual for y " + ys.str(),
+                            "pass one residual [N, 1..Cout, Hout, Wout], padded or plain");
     }
   }
-  if ((x_padded != nullptr || y_padded != nullptr || residual_padded != nullptr) &&
-      algo != Conv2dAlgo::blocked) {
-    throw InvalidArgument(op,
-                          std::string("padded inputs and outputs need the blocked variant, not ") +
-                              conv2d_algo_name(algo),
-                          "use conv2d (conv2d_padded_input is undefined for such convolutions)");
-  }
   if (x_padded != nullptr) {
-    if (!x_padded->defined() || !same_layout(*x_padded, padded_layout(d, p, xs))) {
+    if (!x_padded->defined() || !same_layout(*x_padded, padded_layout(d, p, xs, algo))) {
       throw InvalidArgument(op, "the padded input is not the one this convolution reads",
                             "make it with conv2d_padded_input for the same shapes and params");
     }
@@ -565,8 +658,9 @@ Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& we
                                  const Conv2dParams& p) {
   const char* op = "conv2d_padded_input";
   const Dims d = dims_of(op, x, weight, p);
-  if (select(stream.device().info(), d, p, op) != Conv2dAlgo::blocked) return {};
-  Conv2dPadded l = padded_layout(d, p, x);
+  const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
+  if (algo != Conv2dAlgo::blocked && algo != Conv2dAlgo::depthwise) return {};
+  Conv2dPadded l = padded_layout(d, p, x, algo);
   l.data =
       Tensor::empty(stream.device(), Shape{d.n * d.cin * std::int64_t(l.hp) * std::int64_t(l.wp)});
   stream.fill(l.data, 0.f);
@@ -600,6 +694,7 @@ void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& wei
 void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
                           const Conv2dParams& p) {
   const char* op = "conv2d_backward_data";
+  refuse_relu_input(op, p);
   require_f32_rank(dx, 4, op, "dx");
   require_f32_rank(weight, 4, op, "weight");
   const Dims d = dims_of(op, dx.shape(), weight.shape(), p);
@@ -643,8 +738,8 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
     c.yh = c.hout;
     c.yw = c.wout;
     const std::string why =
-        padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp) >
-                stream.device().info().max_texel_buffer_elements
+        padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp,
+                        Conv2dAlgo::blocked) > stream.device().info().max_texel_buffer_elements
             ? "the padded input exceeds the texel limit"
             : "";
     if (why.empty()) {
@@ -662,6 +757,7 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
 void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
                             const Tensor& dweight, const Tensor* dbias, const Conv2dParams& p) {
   const char* op = "conv2d_backward_weight";
+  refuse_relu_input(op, p);
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(dweight, 4, op, "dweight");
   const Dims d = dims_of(op, x.shape(), dweight.shape(), p);

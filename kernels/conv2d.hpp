@@ -20,6 +20,10 @@
 // co >= Cr get none, as a shortcut zero-padded in channels would give):
 //   y[n,co,oy,ox] = act(conv + bias[co] + r[n,co,oy,ox]).
 //
+// p.relu_input (direct and depthwise variants, forward only): x goes through
+// ReLU as it is read, y = act(conv(relu(x)) + ...) (a pre-activation fused
+// into the conv; the zero padding stays zero).
+//
 // Backward: the backward kernels assume NO activation. With a fused activation
 // the caller applies the activation's backward to dY first (using the forward
 // output y: ReLU/LeakyReLU gradients depend only on sign(y)) and passes the
@@ -38,9 +42,11 @@
 //              128² on lavapipe (shared 2-core machine): 26–32 GFLOP/s; the
 //              face ResNet's 35²..2² planes: ~40.
 //   pointwise  1×1, stride 1, no padding, groups == 1 (a matmul): 8 channels ×
-//              8 consecutive pixels per invocation (vec4 reads when H·W % 4 == 0).
-//   depthwise  groups == Cin, Cout a multiple of Cin (channel multiplier):
-//              8 pixels of one channel per invocation, padded input as for blocked.
+//              8 consecutive pixels per invocation (vec4 reads when H·W % 4 == 0),
+//              (pixel block, channel block) pairs flattened over the workgroups.
+//   depthwise  groups == Cin, Cout a multiple of Cin (channel multiplier): one
+//              channel × 1..4 rows × up to 16 pixels per invocation, chosen per
+//              shape; padded input as for blocked (its own tile's geometry).
 // Backward-data reuses the blocked kernel (flipped, transposed weights) for
 // stride 1, groups 1 convolutions, and a direct gather otherwise.
 // Temporaries (padded input, packed weights) come from Tensor::empty and are
@@ -75,6 +81,8 @@ struct Conv2dParams {
   int groups = 1;
   Activation activation = Activation::none;  // forward only, applied after the bias
   float leaky_slope = 0.2f;                  // LeakyReLU: y = x < 0 ? slope·x : x
+  // Forward only, direct and depthwise variants: ReLU on x as it is read.
+  bool relu_input = false;
   // Forces a variant (tests, benchmarks); auto_select in normal use. A forced
   // variant that cannot run these parameters throws InvalidArgument.
   Conv2dAlgo algo = Conv2dAlgo::auto_select;
@@ -119,10 +127,10 @@ void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor*
             const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr,
             const Tensor* residual = nullptr);
 
-// The zero-padded copy of an input that the blocked variant reads: planes of
-// hp × wp (wp % 4 == 0) with x at (top, left), zeros around. A producer that
-// writes its output straight into it (conv2d_into_padded) saves the consumer
-// its padding pass (conv2d_from_padded reads it).
+// The zero-padded copy of an input that the blocked and depthwise variants
+// read: planes of hp × wp (wp % 4 == 0) with x at (top, left), zeros around.
+// A producer that writes its output straight into it (conv2d_into_padded)
+// saves the consumer its padding pass (conv2d_from_padded reads it).
 struct Conv2dPadded {
   Tensor data;  // [N·C·hp·wp]
   Shape shape;  // x's [N, C, H, W]
@@ -131,11 +139,13 @@ struct Conv2dPadded {
   bool defined() const noexcept { return data.defined(); }
 };
 // For conv2d(x of shape x, weight, p): its padded input, zero-filled on
-// `stream`, when the selected variant is blocked; else undefined (no data).
+// `stream`, when the selected variant is blocked or depthwise; else undefined
+// (no data).
 Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& weight,
                                  const Conv2dParams& p);
 // conv2d with y written into the interior of y (conv2d_padded_input of y's
-// consumer; y.shape is conv2d's output shape). Blocked variant only.
+// consumer; y.shape is conv2d's output shape). Blocked, depthwise and
+// pointwise variants.
 void conv2d_into_padded(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
                         const Conv2dPadded& y, const Conv2dParams& p,
                         const Conv2dPackedWeight* packed = nullptr,
@@ -148,9 +158,12 @@ void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& wei
                         const Tensor* residual = nullptr);
 
 // The general form: x, y and the residual each plain (the tensor) or padded
-// (io: x read from its padded copy, y written into a padded tensor's
-// interior, the residual read from a tensor in x's padded layout, for a
-// stride-1 'same' convolution whose input is also its shortcut).
+// (io: x read from its padded copy (blocked, depthwise), y written into a
+// padded tensor's interior (blocked, depthwise, pointwise), the residual read
+// from a padded tensor: blocked, one in x's padded layout, for a stride-1
+// 'same' convolution whose input is also its shortcut; pointwise, any padded
+// tensor holding [N, Cr, H, W], such as the consumer's padded input of the
+// previous sum in a chain of residual adds).
 struct Conv2dPaddedIo {
   const Conv2dPadded* x = nullptr;
   const Conv2dPadded* y = nullptr;

@@ -1,4 +1,5 @@
 #include <vkjr2/nets/face_landmarks.hpp>
+#include <vkjr2/nets/separable_conv.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
 
@@ -32,11 +33,6 @@ void require_crop(const Tensor& crop, const char* op, const char* name) {
                               ", expected one non-empty f32 RGB image [1, 3, H, W]",
                           "pass one image (image_to_device gives [1, 3, H, W], RGB 0..255)");
   }
-}
-
-// TF "same" padding of a 3×3 window at `stride` over x's spatial size.
-k::Padding2d same3(const Var& x, int stride) {
-  return k::same_padding(x.shape()[2], x.shape()[3], 3, 3, stride, stride);
 }
 
 }  // namespace
@@ -94,41 +90,6 @@ std::array<float, 2 * kLandmarkCount> landmarks_relative_to_crop(const float* ra
 
 // ---- the network -------------------------------------------------------------------
 
-// depthwiseSeparableConv (common/): separableConv2d(x, dw, pw, stride, 'same') + bias,
-// the depthwise step carrying the stride and TF's asymmetric "same" padding.
-class FaceLandmark68Net::SeparableConv : public Module {
- public:
-  SeparableConv(const Device& device, WeightReader& r, const std::string& prefix, std::int64_t cin,
-                std::int64_t cout, int stride)
-      : stride_(stride) {
-    depthwise_ = register_parameter("depthwise_filter",
-                                    r.depthwise(device, prefix + "/depthwise_filter", cin));
-    pointwise_ = register_parameter(
-        "pointwise_filter", r.conv(device, prefix + "/pointwise_filter", {1, 1, cin, cout}));
-    bias_ = register_parameter("bias", r.vec(device, prefix + "/bias", cout));
-    groups_ = int(cin);
-  }
-
-  Var forward(Tape& t, const Var& x, k::Activation act) const {
-    k::Conv2dParams dw;
-    dw.stride_y = dw.stride_x = stride_;
-    dw.pad = same3(x, stride_);
-    dw.groups = groups_;
-    const Var mid = conv2d(t, x, depthwise_, Var(), dw);
-    k::Conv2dParams pw;
-    pw.activation = act;
-    return conv2d(t, mid, pointwise_, bias_, pw, &pointwise_packed_);
-  }
-
-  // Packs the pointwise filter for the fast conv (again only if it changes).
-  void pack(Stream& s) const { pointwise_packed_.get(s, pointwise_); }
-
- private:
-  Var depthwise_, pointwise_, bias_;
-  ConvWeightCache pointwise_packed_;
-  int stride_, groups_ = 1;
-};
-
 // denseBlock4 (faceFeatureExtractor/denseBlock.ts): out1 = relu(conv0(x)) at
 // stride 2, then three separable convs whose inputs are relu of the running
 // sum of the previous outputs; the block returns relu of the full sum.
@@ -142,7 +103,7 @@ class FaceLandmark68Net::DenseBlock : public Module {
       first_bias_ = register_parameter("conv0.bias", r.vec(device, name + "/conv0/bias", cout));
     } else {
       conv0_ = &register_module(
-          "conv0", std::make_unique<SeparableConv>(device, r, name + "/conv0", cin, cout, 2));
+          "conv0", std::make_unique<SeparableConv3x3>(device, r, name + "/conv0", cin, cout, 2));
     }
     for (int i = 1; i <= 3; ++i) {
       const std::string n = "conv" + std::to_string(i);
@@ -150,7 +111,7 @@ class FaceLandmark68Net::DenseBlock : public Module {
       prefix += '/';
       prefix += n;
       convs_[std::size_t(i - 1)] =
-          &register_module(n, std::make_unique<SeparableConv>(device, r, prefix, cout, cout, 1));
+          &register_module(n, std::make_unique<SeparableConv3x3>(device, r, prefix, cout, cout, 1));
     }
   }
 
@@ -159,11 +120,7 @@ class FaceLandmark68Net::DenseBlock : public Module {
     if (conv0_ != nullptr) {
       out1 = conv0_->forward(t, x, k::Activation::relu);
     } else {  // tf.conv2d(x, filters, [2, 2], 'same') + bias, relu
-      k::Conv2dParams p;
-      p.stride_y = p.stride_x = 2;
-      p.pad = same3(x, 2);
-      p.activation = k::Activation::relu;
-      out1 = conv2d(t, x, first_filters_, first_bias_, p, &first_packed_);
+      out1 = conv2d(t, x, first_filters_, first_bias_, first_params(x.shape()), &first_packed_);
     }
     // face-api sums out1 + (out2 + (out3 + out4)); the running sum below
     // associates left to right instead (differences at float rounding level).
@@ -181,14 +138,74 @@ class FaceLandmark68Net::DenseBlock : public Module {
     } else {
       first_packed_.get(s, first_filters_);
     }
-    for (const SeparableConv* c : convs_) c->pack(s);
+    for (const SeparableConv3x3* c : convs_) c->pack(s);
+  }
+
+  // The block's output shape for x of shape x (stride 2, 'same').
+  Shape output_shape(const Shape& x) const {
+    return Shape{x[0], std::int64_t(convs_[0]->out_channels()), (x[2] + 1) / 2, (x[3] + 1) / 2};
+  }
+
+  // Whether forward_inference can run this block for x of shape x (no
+  // parameter needs a gradient, every conv runs a variant with padded io).
+  bool infers(const Tape& t, const Shape& x) const {
+    const Shape o = output_shape(x);
+    const bool first = conv0_ != nullptr
+                           ? conv0_->infers(t, x)
+                           : !t.needs_grad({&first_filters_, &first_bias_}) &&
+                                 k::conv2d_select(t.device().info(), x, first_filters_.shape(),
+                                                  first_params(x)) == k::Conv2dAlgo::blocked;
+    return first && std::all_of(convs_.begin(), convs_.end(),
+                                [&](const SeparableConv3x3* c) { return c->infers(t, o); });
+  }
+
+  // conv0's zero-padded input for x of shape x, for the previous block to
+  // write its output into; undefined for the first block (a dense conv
+  // reading the normalized image).
+  k::Conv2dPadded padded_input(Tape& t, const Shape& x) const {
+    return conv0_ != nullptr ? conv0_->padded_input(t, x) : k::Conv2dPadded{};
+  }
+
+  // Inference (infers()): the block with the running sum kept in the
+  // separable convs' padded input layout, two tensors used in turn. Each
+  // pointwise conv adds the sum in its epilogue and writes the new one
+  // straight into the next depthwise conv's padded input, which applies the
+  // ReLU as it reads it; the last one applies the block's ReLU itself. So no
+  // padding, add or ReLU pass runs. x: plain (the first block) or xp, its
+  // padded copy (already ReLU'd); the result goes into `into` (the next
+  // block's padded input; then undefined) or is returned.
+  Var forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& xp,
+                        const k::Conv2dPadded* into) const {
+    const Shape o = output_shape(xp.defined() ? xp.shape : x.shape());
+    const std::array<k::Conv2dPadded, 2> sums = {convs_[0]->padded_input(t, o),
+                                                 convs_[0]->padded_input(t, o)};
+    if (conv0_ != nullptr) {
+      conv0_->run_padded(t, xp, false, k::Activation::relu, 0.f, nullptr, &sums[0]);
+    } else {
+      k::Conv2dPaddedIo io;
+      io.y = &sums[0];
+      k::conv2d_padded(t.stream(), &x.value(), first_filters_.value(), &first_bias_.value(),
+                       nullptr, first_params(x.shape()), io,
+                       &first_packed_.get(t.stream(), first_filters_));
+    }
+    convs_[0]->run_padded(t, sums[0], false, k::Activation::none, 0.f, &sums[0], &sums[1]);
+    convs_[1]->run_padded(t, sums[1], true, k::Activation::none, 0.f, &sums[1], &sums[0]);
+    return convs_[2]->run_padded(t, sums[0], true, k::Activation::relu, 0.f, &sums[0], into);
   }
 
  private:
+  static k::Conv2dParams first_params(const Shape& x) {
+    k::Conv2dParams p;
+    p.stride_y = p.stride_x = 2;
+    p.pad = k::same_padding(x[2], x[3], 3, 3, 2, 2);
+    p.activation = k::Activation::relu;
+    return p;
+  }
+
   Var first_filters_, first_bias_;
   ConvWeightCache first_packed_;
-  const SeparableConv* conv0_ = nullptr;
-  std::array<const SeparableConv*, 3> convs_{};
+  const SeparableConv3x3* conv0_ = nullptr;
+  std::array<const SeparableConv3x3*, 3> convs_{};
 };
 
 std::unique_ptr<FaceLandmark68Net> FaceLandmark68Net::load(const Device& device,
@@ -235,8 +252,30 @@ Var FaceLandmark68Net::forward(Tape& t, const Var& x112) const {
         "pad and resize face crops with to_landmark_input first");
   }
   Var x = channel_affine(t, x112, input_scale_, input_shift_);
-  for (const DenseBlock* block : blocks_) x = block->forward(t, x);  // 112 → 56 → 28 → 14 → 7
-  x = avg_pool2d(t, x, k::pool_valid(7, 7, 2, 2));                   // [N, 256, 1, 1]
+  // Inference (nothing needs a gradient): each block writes its output
+  // straight into the next one's padded input (see forward_inference).
+  bool infers = !t.needs_grad({&x112});
+  Shape xs = x.shape();
+  for (const DenseBlock* block : blocks_) {
+    infers = infers && block->infers(t, xs);
+    xs = block->output_shape(xs);
+  }
+  if (infers) {
+    k::Conv2dPadded xp;
+    xs = x.shape();
+    for (std::size_t i = 0; i < blocks_.size(); ++i) {
+      const Shape os = blocks_[i]->output_shape(xs);
+      const k::Conv2dPadded into =
+          i + 1 < blocks_.size() ? blocks_[i + 1]->padded_input(t, os) : k::Conv2dPadded{};
+      const Var y = blocks_[i]->forward_inference(t, x, xp, into.defined() ? &into : nullptr);
+      if (!into.defined()) x = y;
+      xp = into;
+      xs = os;
+    }
+  } else {
+    for (const DenseBlock* block : blocks_) x = block->forward(t, x);  // 112 → 56 → 28 → 14 → 7
+  }
+  x = avg_pool2d(t, x, k::pool_valid(7, 7, 2, 2));  // [N, 256, 1, 1]
   x = reshape(t, x, Shape{x.shape()[0], x.shape()[1]});
   return linear(t, x, fc_weights_, fc_bias_);
 }

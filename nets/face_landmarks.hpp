@@ -82,7 +82,6 @@ class FaceLandmark68Net : public Module {
                                          const FaceBox& box) const;
 
  private:
-  class SeparableConv;
   class DenseBlock;
   std::vector<const DenseBlock*> blocks_;
   Var fc_weights_, fc_bias_;

@@ -145,39 +145,6 @@ std::vector<std::size_t> non_max_suppression(std::span<const FaceBox> boxes,
 
 // ---- the network -------------------------------------------------------------------
 
-// tinyYolov2/depthwiseSeparableConv.ts: pad 1, separableConv2d 'valid', + bias, leaky.
-class TinyFaceDetector::SeparableConv : public Module {
- public:
-  SeparableConv(const Device& device, WeightReader& r, const std::string& prefix, std::int64_t cin,
-                std::int64_t cout)
-      : groups_(int(cin)) {
-    depthwise_ = register_parameter("depthwise_filter",
-                                    r.depthwise(device, prefix + "/depthwise_filter", cin));
-    pointwise_ = register_parameter(
-        "pointwise_filter", r.conv(device, prefix + "/pointwise_filter", {1, 1, cin, cout}));
-    bias_ = register_parameter("bias", r.vec(device, prefix + "/bias", cout));
-  }
-
-  Var forward(Tape& t, const Var& x) const {
-    k::Conv2dParams dw;
-    dw.pad = k::Padding2d{1, 1, 1, 1};
-    dw.groups = groups_;
-    const Var mid = conv2d(t, x, depthwise_, Var(), dw);
-    k::Conv2dParams pw;
-    pw.activation = k::Activation::leaky_relu;
-    pw.leaky_slope = kLeakySlope;
-    return conv2d(t, mid, pointwise_, bias_, pw, &pointwise_packed_);
-  }
-
-  // Packs the pointwise filter for the fast conv (again only if it changes).
-  void pack(Stream& s) const { pointwise_packed_.get(s, pointwise_); }
-
- private:
-  Var depthwise_, pointwise_, bias_;
-  ConvWeightCache pointwise_packed_;
-  int groups_;
-};
-
 std::unique_ptr<TinyFaceDetector> TinyFaceDetector::load(const Device& device,
                                                          const std::filesystem::path& manifest) {
   return std::make_unique<TinyFaceDetector>(device, load_tfjs_weights(manifest));
@@ -191,8 +158,10 @@ TinyFaceDetector::TinyFaceDetector(const Device& device, const TfjsWeights& weig
   constexpr std::array<std::int64_t, 6> channels = {16, 32, 64, 128, 256, 512};
   for (std::size_t i = 0; i + 1 < channels.size(); ++i) {
     const std::string name = "conv" + std::to_string(i + 1);
-    convs_.push_back(&register_module(
-        name, std::make_unique<SeparableConv>(device, r, name, channels[i], channels[i + 1])));
+    // tinyYolov2/depthwiseSeparableConv.ts: pad 1, separableConv2d 'valid' (= 'same'
+    // at stride 1), + bias, leaky.
+    convs_.push_back(&register_module(name, std::make_unique<SeparableConv3x3>(
+                                                device, r, name, channels[i], channels[i + 1], 1)));
   }
   conv8_filters_ = register_parameter(
       "conv8.filters", r.conv(device, "conv8/filters", {1, 1, 512, kOutputChannels}));
@@ -208,7 +177,7 @@ TinyFaceDetector::TinyFaceDetector(const Device& device, const TfjsWeights& weig
   // Conv weights packed once at load (repacked only if a weight changes).
   Stream stream(device);
   conv0_packed_.get(stream, conv0_filters_);
-  for (const SeparableConv* c : convs_) c->pack(stream);
+  for (const SeparableConv3x3* c : convs_) c->pack(stream);
   conv8_packed_.get(stream, conv8_filters_);
   stream.run();
 }
@@ -231,9 +200,24 @@ Var TinyFaceDetector::forward(Tape& t, const Var& x) const {
   p0.activation = k::Activation::leaky_relu;
   p0.leaky_slope = kLeakySlope;
   y = conv2d(t, y, conv0_filters_, conv0_bias_, p0, &conv0_packed_);
-  for (std::size_t i = 0; i < convs_.size(); ++i) {
-    y = max_pool2d(t, y, k::pool_same(2, 2, 2, 2, y.shape()[2], y.shape()[3]));
-    y = convs_[i]->forward(t, y);
+  // Inference (nothing needs a gradient): each max pool writes straight into
+  // the next depthwise conv's zero-padded input (no padding pass).
+  bool infers = !t.needs_grad({&x, &conv0_filters_, &conv0_bias_});
+  Shape s = y.shape();
+  for (const SeparableConv3x3* c : convs_) {
+    s = k::pool_output_shape(s, k::pool_same(2, 2, 2, 2, s[2], s[3]));
+    infers = infers && c->infers(t, s);
+    s = c->output_shape(s);
+  }
+  for (const SeparableConv3x3* c : convs_) {
+    const k::Pool2d pool = k::pool_same(2, 2, 2, 2, y.shape()[2], y.shape()[3]);
+    if (infers) {
+      const k::Conv2dPadded xp = c->padded_input(t, k::pool_output_shape(y.shape(), pool));
+      k::max_pool2d_into_padded(t.stream(), y.value(), pool, xp);
+      y = c->run_padded(t, xp, false, k::Activation::leaky_relu, kLeakySlope, nullptr, nullptr);
+    } else {
+      y = c->forward(t, max_pool2d(t, y, pool), k::Activation::leaky_relu, kLeakySlope);
+    }
   }
   y = max_pool2d(t, y, k::pool_same(2, 2, 1, 1, y.shape()[2], y.shape()[3]));
   return conv2d(t, y, conv8_filters_, conv8_bias_, k::Conv2dParams{}, &conv8_packed_);

@@ -16,6 +16,7 @@
 #include <vkjr2/nets/face_common.hpp>
 #include <vkjr2/nets/face_recognition.hpp>  // FaceBox
 #include <vkjr2/nets/ops.hpp>
+#include <vkjr2/nets/separable_conv.hpp>
 
 #include <array>
 #include <filesystem>
@@ -110,9 +111,8 @@ class TinyFaceDetector : public Module {
                                     float score_threshold = 0.5f) const;
 
  private:
-  class SeparableConv;
   Var conv0_filters_, conv0_bias_;
-  std::vector<const SeparableConv*> convs_;  // conv1 … conv5
+  std::vector<const SeparableConv3x3*> convs_;  // conv1 … conv5
   Var conv8_filters_, conv8_bias_;
   ConvWeightCache conv0_packed_, conv8_packed_;
   Var input_scale_, input_shift_;  // 1/255 and −mean/255 per channel

@@ -20,6 +20,7 @@ layout(push_constant) uniform Push {
   uint cres;                  // its channels (<= cout; channels past it get none)
   uint yh, yw;                // y's planes (blocked: hout × wout, or a padded tensor's)
   uint ytop, yleft;           // where the output sits in them
+  uint xrelu;                 // ReLU on x as it is read (direct, depthwise)
 } pc;
 
 // The forward shaders that take a residual declare it as binding 4
@@ -32,8 +33,9 @@ float conv_residual(uint n, uint co, uint pix) {
   if (pc.has_res == 0u || co >= pc.cres) return 0.0;
   return texelFetch(res, int((n * pc.cres + co) * pc.hout * pc.wout + pix)).r;
 }
-// Also has_res == 2 (blocked): the residual in this conv's own padded-input
-// layout (planes hp × wp, at (pt, pl); a stride-1 'same' conv's input).
+// Also has_res == 2: the residual in a padded layout (planes hp × wp, at
+// (pt, pl)): blocked, this conv's own padded input (a stride-1 'same' conv's);
+// pointwise (no padding of its own), the padded tensor's.
 float conv_residual_at(uint n, uint co, uint oy, uint ox) {
   if (pc.has_res != 2u) return conv_residual(n, co, oy * pc.wout + ox);
   if (co >= pc.cres) return 0.0;

@@ -1,55 +1,99 @@
 #version 450
 // conv2d forward, depthwise (groups == cin, cout = cin · multiplier): each
-// invocation computes 8 consecutive output pixels of one row of one output
-// channel, from the zero-padded input of conv2d_pad (no bounds checks).
+// invocation computes RY rows × PX consecutive pixels of one output channel
+// (kernels/conv2d.cpp, depthwise_tile), from the zero-padded input of
+// conv2d_pad or a producer's padded output (no bounds checks). Invocations
+// run over (pixel block, channel) flattened, so small planes with many
+// channels still fill whole workgroups. With RY > 1 (stride 1) the RY + KH − 1
+// input rows of a block are loaded once; the KH·KW weights are read once per
+// block. XRELU: ReLU on the input as it is loaded (relu(0) keeps the zero
+// padding). y: hout × wout planes, or a padded tensor's (its consumer's input).
 #define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
-layout(local_size_x = 64) in;
+layout(local_size_x_id = 7) in;  // 8..64: fewer lanes per group on small outputs
 layout(constant_id = 0) const uint KH = 3u;
 layout(constant_id = 1) const uint KW = 3u;
 layout(constant_id = 2) const uint SX = 1u;
 layout(constant_id = 3) const uint DX = 1u;
-const uint PX = 8u;
+layout(constant_id = 4) const uint PX = 8u;
+layout(constant_id = 5) const uint RY = 1u;  // output rows per invocation (RY > 1: sy = dy = 1)
+layout(constant_id = 6) const uint XRELU = 0u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
+const uint NR = RY + KH - 1u;       // input rows of one block when RY > 1
 
 layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp], zero-padded
 layout(binding = 1) uniform samplerBuffer weight;  // [cout, 1, kh, kw]
 layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
 
+vec4 load(int i) {
+  const vec4 v = texelFetch(xp, i);
+  return XRELU != 0u ? max(v, vec4(0.0)) : v;
+}
+
 void main() {
-  const uint pb = gl_GlobalInvocationID.x;
-  if (pb >= pc.hout * pc.wblocks) return;
-  const uint co = gl_WorkGroupID.y;
+  const uint rblocks = (pc.hout + RY - 1u) / RY;
+  const uint npb = rblocks * pc.wblocks;
+  const uint idx = linear_group() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+  const uint co = idx / npb;
+  if (co >= pc.cout) return;
+  const uint pb = idx - co * npb;
   const uint n = gl_WorkGroupID.z;
   const uint ci = co / pc.cout_g;
-  const uint oy = pb / pc.wblocks;
+  const uint oy0 = (pb / pc.wblocks) * RY;
   const uint ox0 = (pb % pc.wblocks) * PX;
 
-  float acc[PX];
-  [[unroll]] for (uint p = 0u; p < PX; ++p) acc[p] = 0.0;
-  const int xbase = int((((n * pc.cin + ci) * pc.hp + oy * pc.sy) * pc.wp + ox0 * SX) / 4u);
-  const int row_step = int(pc.dy * pc.wp / 4u);
+  float acc[RY * PX];  // acc[q · PX + p]
+  [[unroll]] for (uint i = 0u; i < RY * PX; ++i) acc[i] = 0.0;
+  const int xbase = int((((n * pc.cin + ci) * pc.hp + oy0 * pc.sy) * pc.wp + ox0 * SX) / 4u);
   const int wbase = int(co * KH * KW);
-  [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-    const int rb = xbase + int(ky) * row_step;
-    vec4 r[SEG4];
-    [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = texelFetch(xp, rb + int(j));
-    [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
-      const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
-      [[unroll]] for (uint p = 0u; p < PX; ++p) {
-        const uint k = p * SX + kx * DX;
-        acc[p] = fma(r[k / 4u][k % 4u], wv, acc[p]);
+  if (RY == 1u) {
+    const int row_step = int(pc.dy * pc.wp / 4u);
+    [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+      const int rb = xbase + int(ky) * row_step;
+      vec4 r[SEG4];
+      [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = load(rb + int(j));
+      [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
+        const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
+        [[unroll]] for (uint p = 0u; p < PX; ++p) {
+          const uint k = p * SX + kx * DX;
+          acc[p] = fma(r[k / 4u][k % 4u], wv, acc[p]);
+        }
+      }
+    }
+  } else {
+    vec4 r[NR * SEG4];
+    [[unroll]] for (uint i = 0u; i < NR; ++i) {
+      [[unroll]] for (uint j = 0u; j < SEG4; ++j) {
+        r[i * SEG4 + j] = load(xbase + int(i * pc.wp / 4u + j));
+      }
+    }
+    [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+      [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
+        const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
+        [[unroll]] for (uint q = 0u; q < RY; ++q) {
+          [[unroll]] for (uint p = 0u; p < PX; ++p) {
+            const uint col = p * SX + kx * DX;
+            acc[q * PX + p] = fma(r[(q + ky) * SEG4 + col / 4u][col % 4u], wv, acc[q * PX + p]);
+          }
+        }
       }
     }
   }
   const float b = pc.has_bias != 0u ? texelFetch(bias, int(co)).r : 0.0;
-  const uint obase = ((n * pc.cout + co) * pc.hout + oy) * pc.wout + ox0;
-  [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    if (ox0 + p < pc.wout) {
-      y[obase + p] = conv_act(acc[p] + b + conv_residual(n, co, oy * pc.wout + ox0 + p));
+  // A padded y may end before the output does (its consumer reads no further).
+  const uint plane = (n * pc.cout + co) * pc.yh;
+  [[unroll]] for (uint q = 0u; q < RY; ++q) {
+    const uint oy = oy0 + q;
+    if (oy >= pc.hout || oy + pc.ytop >= pc.yh) continue;
+    const uint orow = (plane + oy + pc.ytop) * pc.yw + pc.yleft;
+    [[unroll]] for (uint p = 0u; p < PX; ++p) {
+      const uint ox = ox0 + p;
+      if (ox < pc.wout && ox + pc.yleft < pc.yw) {
+        y[orow + ox] = conv_act(acc[q * PX + p] + b + conv_residual(n, co, oy * pc.wout + ox));
+      }
     }
   }
 }

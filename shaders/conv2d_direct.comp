@@ -33,8 +33,9 @@ void main() {
       for (uint kx = 0u; kx < pc.kw; ++kx) {
         const int ix = ix0 + int(kx * pc.dx);
         if (ix < 0 || ix >= int(pc.w)) continue;
-        acc = fma(texelFetch(weight, int(wbase + ky * pc.kw + kx)).r,
-                  texelFetch(x, int(row + uint(ix))).r, acc);
+        float xv = texelFetch(x, int(row + uint(ix))).r;
+        if (pc.xrelu != 0u) xv = max(xv, 0.0);
+        acc = fma(texelFetch(weight, int(wbase + ky * pc.kw + kx)).r, xv, acc);
       }
     }
   }

@@ -2,10 +2,15 @@
 // conv2d forward, 1×1 kernel, stride 1, no padding, groups == 1: a matmul
 // y[n] = W · x[n] over the flattened h·w pixels. Each invocation computes 8
 // output channels × 8 consecutive pixels; weights packed as in conv2d_blocked.
+// Invocations run over (pixel block, channel block) flattened, so small
+// planes with many channels still fill whole workgroups. y: h × w planes, or
+// a padded tensor's (its consumer's input); the residual plain or, has_res
+// == 2, in a padded tensor's layout (hp, wp, pt, pl: a pointwise conv has no
+// padding of its own).
 #define CONV2D_RESIDUAL
 #include "common.glsl"
 #include "conv2d_common.glsl"
-layout(local_size_x = 64) in;
+layout(local_size_x_id = 1) in;  // 8..64: fewer lanes per group on small outputs
 layout(constant_id = 0) const uint VEC4 = 0u;  // h·w % 4 == 0: pixels read as two vec4 texels
 const uint PX = 8u;
 layout(binding = 0) uniform samplerBuffer x;       // [n, cin, h·w]; RGBA32F view when VEC4
@@ -13,52 +18,67 @@ layout(binding = 1) uniform samplerBuffer packed;  // RGBA32F: [cout/8][cin][2]
 layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
 
+vec4 a0[PX], a1[PX];  // output channels 0..3 and 4..7 of the block, per pixel
+int pix[PX];          // !VEC4: the pixels (a last block's extra lanes re-read the last one)
+int q0, q1;           // VEC4: the two quads of pixels
+
+// One input channel: its plane at xbase, its 8 weights w0 (channels 0..3), w1.
+void accumulate(int xbase, vec4 w0, vec4 w1) {
+  if (VEC4 != 0u) {
+    const vec4 v0 = texelFetch(x, xbase + q0);
+    const vec4 v1 = texelFetch(x, xbase + q1);
+    [[unroll]] for (uint p = 0u; p < 4u; ++p) {
+      a0[p] = fma(vec4(v0[p]), w0, a0[p]);
+      a1[p] = fma(vec4(v0[p]), w1, a1[p]);
+      a0[p + 4u] = fma(vec4(v1[p]), w0, a0[p + 4u]);
+      a1[p + 4u] = fma(vec4(v1[p]), w1, a1[p + 4u]);
+    }
+  } else {
+    [[unroll]] for (uint p = 0u; p < PX; ++p) {
+      const float v = texelFetch(x, xbase + pix[p]).r;
+      a0[p] = fma(vec4(v), w0, a0[p]);
+      a1[p] = fma(vec4(v), w1, a1[p]);
+    }
+  }
+}
+
 void main() {
   const uint hw = pc.h * pc.w;
-  const uint pix0 = gl_GlobalInvocationID.x * PX;
-  if (pix0 >= hw) return;
-  const uint cob = gl_WorkGroupID.y;
+  const uint npb = (hw + PX - 1u) / PX;
+  const uint idx = linear_group() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
+  const uint cob = idx / npb;  // block of 8 output channels
+  if (cob >= (pc.cout + 7u) / 8u) return;
+  const uint pix0 = (idx - cob * npb) * PX;
   const uint n = gl_WorkGroupID.z;
-  vec4 a0[PX], a1[PX];
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
     a0[p] = vec4(0.0);
     a1[p] = vec4(0.0);
   }
-  int wi = int(cob * pc.cin * 2u);
+  int stride;  // one input channel's plane, in texels
   if (VEC4 != 0u) {
     const int quads = int(hw / 4u);
-    const int q0 = int(pix0 / 4u);
-    const int q1 = min(q0 + 1, quads - 1);  // a last block of 4 pixels re-reads its quad
-    int xbase = int(n * pc.cin) * quads;
-    for (uint c = 0u; c < pc.cin; ++c) {
-      const vec4 w0 = texelFetch(packed, wi);
-      const vec4 w1 = texelFetch(packed, wi + 1);
-      const vec4 v0 = texelFetch(x, xbase + q0);
-      const vec4 v1 = texelFetch(x, xbase + q1);
-      [[unroll]] for (uint p = 0u; p < 4u; ++p) {
-        a0[p] = fma(vec4(v0[p]), w0, a0[p]);
-        a1[p] = fma(vec4(v0[p]), w1, a1[p]);
-        a0[p + 4u] = fma(vec4(v1[p]), w0, a0[p + 4u]);
-        a1[p + 4u] = fma(vec4(v1[p]), w1, a1[p + 4u]);
-      }
-      xbase += quads;
-      wi += 2;
-    }
+    q0 = int(pix0 / 4u);
+    q1 = min(q0 + 1, quads - 1);  // a last block of 4 pixels re-reads its quad
+    stride = quads;
   } else {
-    int pix[PX];  // clamped: the last block's extra lanes re-read the last pixel
     [[unroll]] for (uint p = 0u; p < PX; ++p) pix[p] = int(min(pix0 + p, hw - 1u));
-    int xbase = int(n * pc.cin * hw);
-    for (uint c = 0u; c < pc.cin; ++c) {
-      const vec4 w0 = texelFetch(packed, wi);
-      const vec4 w1 = texelFetch(packed, wi + 1);
-      [[unroll]] for (uint p = 0u; p < PX; ++p) {
-        const float v = texelFetch(x, xbase + pix[p]).r;
-        a0[p] = fma(vec4(v), w0, a0[p]);
-        a1[p] = fma(vec4(v), w1, a1[p]);
-      }
-      xbase += int(hw);
-      wi += 2;
+    stride = int(hw);
+  }
+  int xbase = int(n * pc.cin) * stride;
+  int wi = int(cob * pc.cin * 2u);
+  uint c = 0u;
+  for (; c + 4u <= pc.cin; c += 4u) {  // unrolled by 4: fewer loop-control ops per FMA
+    [[unroll]] for (int k = 0; k < 4; ++k) {
+      accumulate(xbase + k * stride, texelFetch(packed, wi + 2 * k),
+                 texelFetch(packed, wi + 2 * k + 1));
     }
+    xbase += 4 * stride;
+    wi += 8;
+  }
+  for (; c < pc.cin; ++c) {
+    accumulate(xbase, texelFetch(packed, wi), texelFetch(packed, wi + 1));
+    xbase += stride;
+    wi += 2;
   }
 
   float b[8];
@@ -66,17 +86,26 @@ void main() {
     const uint co = cob * 8u + j;
     b[j] = (pc.has_bias != 0u && co < pc.cout) ? texelFetch(bias, int(co)).r : 0.0;
   }
-  const uint obase = (n * pc.cout + cob * 8u) * hw + pix0;
+  // A padded y may end before the output does (its consumer reads no further).
+  const uint yplane = pc.yh * pc.yw;
+  const uint ybase = (n * pc.cout + cob * 8u) * yplane;
+  uint oy = pix0 / pc.w, ox = pix0 - oy * pc.w;  // of pixel pix0 + p (one division)
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
-    if (pix0 + p < hw) {
+    const uint pix = pix0 + p;
+    if (p > 0u && ++ox == pc.w) {
+      ox = 0u;
+      ++oy;
+    }
+    if (pix < hw && oy + pc.ytop < pc.yh && ox + pc.yleft < pc.yw) {
+      const uint o = ybase + (oy + pc.ytop) * pc.yw + ox + pc.yleft;
       [[unroll]] for (uint j = 0u; j < 4u; ++j) {
         const uint c0 = cob * 8u + j, c1 = c0 + 4u;
         if (c0 < pc.cout) {
-          y[obase + j * hw + p] = conv_act(a0[p][j] + b[j] + conv_residual(n, c0, pix0 + p));
+          y[o + j * yplane] = conv_act(a0[p][j] + b[j] + conv_residual_at(n, c0, oy, ox));
         }
         if (c1 < pc.cout) {
-          y[obase + (4u + j) * hw + p] =
-              conv_act(a1[p][j] + b[4u + j] + conv_residual(n, c1, pix0 + p));
+          y[o + (4u + j) * yplane] =
+              conv_act(a1[p][j] + b[4u + j] + conv_residual_at(n, c1, oy, ox));
         }
       }
     }

@@ -54,7 +54,8 @@ std::vector<float> conv2d(std::span<const float> x, std::span<const float> w,
   const std::int64_t hw = conv2d_out_h(d, p) * conv2d_out_w(d, p);
   std::vector<double> acc(std::size_t(d.n * d.cout * hw), 0.0);
   for_each_tap(d, p, [&](std::size_t yi, std::size_t wi, std::size_t xi) {
-    acc[yi] += double(w[wi]) * double(x[xi]);
+    const double xv = p.relu_input && x[xi] < 0 ? 0.0 : double(x[xi]);
+    acc[yi] += double(w[wi]) * xv;
   });
   std::vector<float> y(acc.size());
   for (std::size_t i = 0; i < acc.size(); ++i) {

@@ -19,8 +19,9 @@ struct Conv2dDims {
 std::int64_t conv2d_out_h(const Conv2dDims& d, const kernels::Conv2dParams& p);
 std::int64_t conv2d_out_w(const Conv2dDims& d, const kernels::Conv2dParams& p);
 
-// y = act(conv(x, w) + bias + residual); bias may be empty; residual
-// [n, cres, hout, wout] (cres <= cout; channels past it get none) may be empty.
+// y = act(conv(x, w) + bias + residual) (conv(relu(x), w) with p.relu_input);
+// bias may be empty; residual [n, cres, hout, wout] (cres <= cout; channels
+// past it get none) may be empty.
 std::vector<float> conv2d(std::span<const float> x, std::span<const float> w,
                           std::span<const float> bias, const Conv2dDims& d,
                           const kernels::Conv2dParams& p, std::span<const float> residual = {},

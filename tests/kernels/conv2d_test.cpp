@@ -33,7 +33,8 @@ std::string describe(const Case& c) {
     << "," << c.d.cin / c.p.groups << "," << c.d.kh << "," << c.d.kw << "] stride (" << c.p.stride_y
     << "," << c.p.stride_x << ") dil (" << c.p.dilation_y << "," << c.p.dilation_x << ") pad (t"
     << c.p.pad.top << " b" << c.p.pad.bottom << " l" << c.p.pad.left << " r" << c.p.pad.right
-    << ") groups " << c.p.groups << " act " << int(c.p.activation);
+    << ") groups " << c.p.groups << " act " << int(c.p.activation)
+    << (c.p.relu_input ? " relu_input" : "");
   return s.str();
 }
 
@@ -76,9 +77,10 @@ std::vector<Case> random_cases(std::uint32_t seed, int count) {
     c.p.dilation_x = pick({1, 1, 2});
     c.p.pad = {uni(0, 3), uni(0, 3), uni(0, 3), uni(0, 3)};
     const int g = uni(0, 3);
-    if (g == 1) {  // depthwise, sometimes with a channel multiplier
+    if (g == 1) {  // depthwise, sometimes with a channel multiplier and an input ReLU
       c.p.groups = int(c.d.cin);
       c.d.cout = c.d.cin * pick({1, 1, 2});
+      c.p.relu_input = (c.d.h + c.d.w) % 2 == 0;
     } else if (g == 2 && c.d.cin % 2 == 0 && c.d.cout % 2 == 0) {
       c.p.groups = 2;
     }
@@ -136,6 +138,20 @@ std::vector<Case> edge_cases() {
   c.p.groups = 32;
   c.p.pad = kernels::same_padding(9, 9, 3, 3, 1, 1);
   c.p.activation = Activation::relu;
+  cases.push_back(c);
+  c.d = {1, 8, 56, 56, 8, 3, 3};  // depthwise, wide rows: 8..16-pixel blocks × 4 rows
+  c.p.groups = 8;
+  c.p.pad = kernels::same_padding(56, 56, 3, 3, 1, 1);
+  c.p.relu_input = true;
+  cases.push_back(c);
+  c.d = {2, 6, 28, 27, 6, 3, 3};  // depthwise, strided wide rows: 8-pixel blocks, 1 row
+  c.p.groups = 6;
+  c.p.stride_y = c.p.stride_x = 2;
+  c.p.pad = kernels::same_padding(28, 27, 3, 3, 2, 2);
+  c.p.activation = Activation::none;
+  cases.push_back(c);
+  c.d = {1, 16, 7, 7, 24, 1, 1};  // pointwise, 49 pixels: scalar reads, channel blocks flattened
+  c.p = {};
   cases.push_back(c);
   return cases;
 }
@@ -228,6 +244,7 @@ void check_backward(const Case& c, std::uint32_t seed) {
   Tensor dx_auto = Tensor::empty(dev, x_shape(c.d));
   Conv2dParams p = c.p;
   p.activation = Activation::none;
+  p.relu_input = false;  // forward only
   Stream s(dev);
   kernels::conv2d_backward_weight(s, x, dy, dw, &db, p);
   kernels::conv2d_backward_data(s, dy, w, dx_auto, p);
@@ -355,6 +372,90 @@ TEST(Conv2d, ResidualInThePaddedInputLayout) {
   EXPECT_THROW(kernels::conv2d_padded(s, &x1, tw1, nullptr, &y2, strided, io1), InvalidArgument);
 }
 
+// The separable residual chain the landmark net runs in inference, on random
+// shapes, against the reference chained on the host:
+//   a = pw0(x) + b0                  written into P, dw1's padded input
+//   m = dw1(relu(a))                 read from P, ReLU as it is read
+//   s = pw1(m) + b1 + a              a read from P; s written into Q (dw2's)
+//   u = relu(dw2(relu(s)) + b2)      stride 2, read from Q; written into R
+//   y = conv3(u)                     blocked 3×3, read from R.
+TEST(Conv2d, SeparableChainThroughPaddedTensors) {
+  Device& dev = test::device();
+  std::mt19937 rng(99);
+  auto pick = [&](std::initializer_list<int> v) {
+    return *(v.begin() + std::uniform_int_distribution<int>(0, int(v.size()) - 1)(rng));
+  };
+  for (int trial = 0; trial < 6; ++trial) {
+    const ref::Conv2dDims d0{pick({1, 2}),
+                             pick({3, 8}),
+                             pick({1, 5, 8, 14, 19}),
+                             pick({2, 7, 9, 16, 23}),
+                             pick({5, 8, 16}),
+                             1,
+                             1};
+    SCOPED_TRACE("trial " + std::to_string(trial) + ": x [" + std::to_string(d0.n) + "," +
+                 std::to_string(d0.cin) + "," + std::to_string(d0.h) + "," + std::to_string(d0.w) +
+                 "], " + std::to_string(d0.cout) + " channels");
+    const std::int64_t c = d0.cout;
+    const ref::Conv2dDims d1{d0.n, c, d0.h, d0.w, c, 3, 3}, dp1{d0.n, c, d0.h, d0.w, c, 1, 1};
+    const ref::Conv2dDims d2{d0.n, c, d0.h, d0.w, c, 3, 3};
+    Conv2dParams pw, dw1, dw2, p3;
+    dw1.groups = dw2.groups = int(c);
+    dw1.pad = kernels::same_padding(d0.h, d0.w, 3, 3, 1, 1);
+    dw1.relu_input = dw2.relu_input = true;
+    dw2.stride_y = dw2.stride_x = 2;
+    dw2.pad = kernels::same_padding(d0.h, d0.w, 3, 3, 2, 2);
+    dw2.activation = Activation::relu;
+    const ref::Conv2dDims d3{d0.n, c, ref::conv2d_out_h(d2, dw2), ref::conv2d_out_w(d2, dw2), 4,
+                             3,    3};
+    p3.pad = {1, 1, 1, 1};
+    const auto xv = test::random_floats(std::size_t(x_shape(d0).numel()), 10 + trial);
+    const auto w0 = test::random_floats(std::size_t(c * d0.cin), 20 + trial);
+    const auto b0 = test::random_floats(std::size_t(c), 30 + trial);
+    const auto wd1 = test::random_floats(std::size_t(c * 9), 40 + trial);
+    const auto w1 = test::random_floats(std::size_t(c * c), 50 + trial);
+    const auto b1 = test::random_floats(std::size_t(c), 60 + trial);
+    const auto wd2 = test::random_floats(std::size_t(c * 9), 70 + trial);
+    const auto b2 = test::random_floats(std::size_t(c), 80 + trial);
+    const auto w3 = test::random_floats(std::size_t(4 * c * 9), 90 + trial);
+    const auto a = ref::conv2d(xv, w0, b0, d0, pw);
+    const auto m = ref::conv2d(a, wd1, {}, d1, dw1);
+    const auto sum = ref::conv2d(m, w1, b1, dp1, pw, a, c);
+    const auto u = ref::conv2d(sum, wd2, b2, d2, dw2);
+    const auto want = ref::conv2d(u, w3, {}, d3, p3);
+
+    Stream s(dev);
+    const Shape ys = x_shape(d1), us = x_shape(d3);
+    const kernels::Conv2dPadded P = kernels::conv2d_padded_input(s, ys, {c, 1, 3, 3}, dw1);
+    const kernels::Conv2dPadded Q = kernels::conv2d_padded_input(s, ys, {c, 1, 3, 3}, dw2);
+    const kernels::Conv2dPadded R = kernels::conv2d_padded_input(s, us, {4, c, 3, 3}, p3);
+    ASSERT_TRUE(P.defined() && Q.defined() && R.defined());
+    Tensor x = Tensor::from(dev, x_shape(d0), xv);
+    Tensor tw0 = Tensor::from(dev, {c, d0.cin, 1, 1}, w0), tb0 = Tensor::from(dev, {c}, b0);
+    Tensor twd1 = Tensor::from(dev, {c, 1, 3, 3}, wd1);
+    Tensor tw1 = Tensor::from(dev, {c, c, 1, 1}, w1), tb1 = Tensor::from(dev, {c}, b1);
+    Tensor twd2 = Tensor::from(dev, {c, 1, 3, 3}, wd2), tb2 = Tensor::from(dev, {c}, b2);
+    Tensor tw3 = Tensor::from(dev, {4, c, 3, 3}, w3);
+    Tensor tm = Tensor::empty(dev, ys);
+    Tensor y = Tensor::empty(dev, Shape{d0.n, 4, d3.h, d3.w});
+    kernels::conv2d_into_padded(s, x, tw0, &tb0, P, pw);
+    kernels::Conv2dPaddedIo io;
+    io.x = &P;
+    kernels::conv2d_padded(s, nullptr, twd1, nullptr, &tm, dw1, io);
+    io = {};
+    io.y = &Q;
+    io.residual = &P;
+    kernels::conv2d_padded(s, &tm, tw1, &tb1, nullptr, pw, io);
+    io = {};
+    io.x = &Q;
+    io.y = &R;
+    kernels::conv2d_padded(s, nullptr, twd2, &tb2, nullptr, dw2, io);
+    kernels::conv2d_from_padded(s, R, tw3, nullptr, y, p3);
+    s.run();
+    expect_close(y.download(), want, "separable chain through padded tensors");
+  }
+}
+
 // Central differences of L = Σ g ⊙ conv(x, w, b) against dX, dW, dbias.
 void gradcheck(const Case& c, std::uint32_t seed) {
   Device& dev = test::device();
@@ -444,6 +545,12 @@ TEST(Conv2d, SelectsTheSpecializedVariants) {
   EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::blocked);
   p.groups = 64;
   EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 1, 3, 3}, p), Conv2dAlgo::depthwise);
+  p.relu_input = true;
+  p.groups = 64;
+  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 1, 3, 3}, p), Conv2dAlgo::depthwise);
+  p.groups = 1;  // only the direct and depthwise variants take an input ReLU
+  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::direct);
+  p.relu_input = false;
   p.groups = 2;
   EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 32, 3, 3}, p), Conv2dAlgo::direct);
 }
@@ -496,6 +603,29 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x.shape(), w.shape(), same);
   expect_message([&] { kernels::conv2d_from_padded(s, xp, w, nullptr, y, p); }, "padded input");
   expect_message([&] { kernels::conv2d_into_padded(s, x, w, nullptr, xp, p); }, "padded output");
+  Tensor w1x1 = Tensor::empty(dev, {8, 4, 1, 1});
+  Tensor y8 = Tensor::empty(dev, {1, 8, 8, 8});
+  kernels::Conv2dPaddedIo io;
+  io.x = &xp;  // a 1×1 conv (pointwise) reads no padded input
+  expect_message([&] { kernels::conv2d_padded(s, nullptr, w1x1, nullptr, &y8, p, io); },
+                 "blocked or depthwise");
+  io = {};
+  io.residual = &xp;  // [1, 4, 8, 8]: fine; but for a y of 8 channels at 6×6, not
+  expect_message([&] { kernels::conv2d_padded(s, &x, w, nullptr, &y, p, io); }, "padded residual");
+  Tensor w_dw = Tensor::empty(dev, {4, 1, 3, 3});
+  Tensor y_dw = Tensor::empty(dev, {1, 4, 8, 8});
+  Conv2dParams dwp = same;
+  dwp.groups = 4;  // a depthwise conv takes no padded residual
+  expect_message([&] { kernels::conv2d_padded(s, &x, w_dw, nullptr, &y_dw, dwp, io); },
+                 "blocked or pointwise");
+  Conv2dParams relu_in = p;
+  relu_in.relu_input = true;
+  relu_in.algo = Conv2dAlgo::blocked;
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, relu_in); }, "input ReLU");
+  relu_in.algo = Conv2dAlgo::auto_select;
+  expect_message([&] { kernels::conv2d_backward_data(s, y, w, x, relu_in); }, "forward only");
+  expect_message([&] { kernels::conv2d_backward_weight(s, x, y, w, nullptr, relu_in); },
+                 "forward only");
   Tensor dy_bad = Tensor::empty(dev, {1, 8, 5, 6});
   expect_message([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
   expect_message([&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");

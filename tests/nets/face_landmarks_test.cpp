@@ -122,6 +122,46 @@ TEST(FaceLandmark68Net, MatchesFaceApiGivenTheSameCrop) {
       faces, max_raw, max_input, max_px);
 }
 
+// The inference path (running sums in padded tensors, ReLU on read, adds in
+// the pointwise epilogues) against the taped path the training runs (a
+// recording tape whose parameters need gradients), on every reference face
+// and on a batch of two.
+TEST(FaceLandmark68Net, InferenceMatchesTheTapedPath) {
+  const json index = test::parity_index();
+  ASSERT_FALSE(index.is_null());
+  std::vector<float> pixels;
+  int faces = 0;
+  for (const json& image : index.at("images")) {
+    for (const json& det : image.at("detections")) {
+      const std::vector<float> v = npy_image(det.at("landmarks_112").get<std::string>()).download();
+      pixels.insert(pixels.end(), v.begin(), v.end());
+      ++faces;
+    }
+  }
+  ASSERT_GE(faces, 2);
+  const Tensor batch = Tensor::from(test::device(), Shape{faces, 3, 112, 112}, pixels);
+  const auto run = [&](const Tensor& x, bool recording) {
+    Stream stream(test::device());
+    Tape tape(stream, recording);
+    const Var raw = net().forward(tape, Var(x));
+    stream.run();
+    return raw.value().download();
+  };
+  const std::vector<float> taped = run(batch, true), inferred = run(batch, false);
+  ASSERT_EQ(taped.size(), inferred.size());
+  double worst = 0;
+  for (std::size_t i = 0; i < taped.size(); ++i) {
+    worst = std::max(worst, std::fabs(double(taped[i]) - inferred[i]));
+  }
+  // The same operations, the sums associated alike: float rounding only.
+  EXPECT_LT(worst, 1e-5);
+  const Tensor two =
+      Tensor::from(test::device(), Shape{2, 3, 112, 112},
+                   std::vector<float>(pixels.begin(), pixels.begin() + 2 * 3 * 112 * 112));
+  const std::vector<float> pair = run(two, false);
+  for (std::size_t i = 0; i < pair.size(); ++i) EXPECT_NEAR(pair[i], inferred[i], 1e-5) << i;
+}
+
 // The full step: detection box → crop → landmarks in image pixels.
 TEST(FaceLandmark68Net, LandmarksInImageMatchFaceApi) {
   const json index = test::parity_index();

@@ -218,6 +218,32 @@ TEST(TinyFaceDetector, PreprocessEqualsPadThenResize) {
   }
 }
 
+// The inference path (each max pool writing into the next depthwise conv's
+// padded input) against the taped path the training runs (a recording tape
+// whose parameters need gradients), on random images of two sizes, batch 2.
+TEST(TinyFaceDetector, InferenceMatchesTheTapedPath) {
+  for (const int size : {64, 96}) {
+    SCOPED_TRACE("input " + std::to_string(size));
+    const auto values =
+        test::random_floats(std::size_t(2 * 3 * size * size), std::uint32_t(size), 0.f, 255.f);
+    const Tensor x = Tensor::from(test::device(), Shape{2, 3, size, size}, values);
+    const auto run = [&](bool recording) {
+      Stream stream(test::device());
+      Tape tape(stream, recording);
+      const Var out = net().forward(tape, Var(x));
+      stream.run();
+      return out.value().download();
+    };
+    const std::vector<float> taped = run(true), inferred = run(false);
+    ASSERT_EQ(taped.size(), inferred.size());
+    double worst = 0;
+    for (std::size_t i = 0; i < taped.size(); ++i) {
+      worst = std::max(worst, std::fabs(double(taped[i]) - inferred[i]));
+    }
+    EXPECT_LT(worst, 1e-4);  // the same operations in the same order: rounding only
+  }
+}
+
 TEST(TinyFaceDetector, FindsNoFaceInAFlatGreyImage) {
   Stream stream(test::device());
   const Tensor grey =
