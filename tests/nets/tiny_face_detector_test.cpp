@@ -224,8 +224,8 @@ TEST(TinyFaceDetector, PreprocessEqualsPadThenResize) {
 TEST(TinyFaceDetector, InferenceMatchesTheTapedPath) {
   for (const int size : {64, 96}) {
     SCOPED_TRACE("input " + std::to_string(size));
-    const auto values =
-        test::random_floats(std::size_t(2 * 3 * size * size), std::uint32_t(size), 0.f, 255.f);
+    const auto values = test::random_floats(std::size_t(6) * std::size_t(size) * std::size_t(size),
+                                            std::uint32_t(size), 0.f, 255.f);
     const Tensor x = Tensor::from(test::device(), Shape{2, 3, size, size}, values);
     const auto run = [&](bool recording) {
       Stream stream(test::device());
