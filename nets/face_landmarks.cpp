@@ -141,9 +141,10 @@ class FaceLandmark68Net::DenseBlock : public Module {
     for (const SeparableConv3x3* c : convs_) c->pack(s);
   }
 
-  // The block's output shape for x of shape x (stride 2, 'same').
+  // The block's output shape for x of shape x: conv0's (stride 2, 'same').
   Shape output_shape(const Shape& x) const {
-    return Shape{x[0], std::int64_t(convs_[0]->out_channels()), (x[2] + 1) / 2, (x[3] + 1) / 2};
+    return conv0_ != nullptr ? conv0_->output_shape(x)
+                             : k::conv2d_output_shape(x, first_filters_.shape(), first_params(x));
   }
 
   // Whether forward_inference can run this block for x of shape x (no

@@ -66,16 +66,7 @@ void main() {
   }
   int xbase = int(n * pc.cin) * stride;
   int wi = int(cob * pc.cin * 2u);
-  uint c = 0u;
-  for (; c + 4u <= pc.cin; c += 4u) {  // unrolled by 4: fewer loop-control ops per FMA
-    [[unroll]] for (int k = 0; k < 4; ++k) {
-      accumulate(xbase + k * stride, texelFetch(packed, wi + 2 * k),
-                 texelFetch(packed, wi + 2 * k + 1));
-    }
-    xbase += 4 * stride;
-    wi += 8;
-  }
-  for (; c < pc.cin; ++c) {
+  for (uint c = 0u; c < pc.cin; ++c) {
     accumulate(xbase, texelFetch(packed, wi), texelFetch(packed, wi + 1));
     xbase += stride;
     wi += 2;
