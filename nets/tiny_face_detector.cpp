@@ -1,3 +1,4 @@
+#include <vkjr2/kernels/resize.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/nets/tiny_face_detector.hpp>
 #include <vkjr2/runtime/error.hpp>
@@ -229,36 +230,13 @@ Tensor TinyFaceDetector::preprocess(Stream& stream, const Tensor& image, int inp
   require_image(image, op);
   const std::int64_t h = image.shape()[2], w = image.shape()[3], side = std::max(h, w);
   const std::int64_t out = input_size;
-  const auto legacy = k::ResizeMode::bilinear_legacy;
-  Tape tape(stream, /*recording=*/false);
-  Var x(image);
-  if (h == w) {
-    if (side != out) x = resize(tape, x, legacy, out, out);
-    return x.value();
-  }
+  if (h == w && side == out) return image;
   // padToSquare(img, isCenterImage = false) puts all the padding after the
-  // image, then resizeBilinear(square, out). Bilinear is separable: the long
-  // axis, which needs no padding, is resized first straight from the image
-  // (its taps along the other axis have weight 0: an exact copy), so only the
-  // small intermediate is padded — never the full-size square.
-  if (w > h) {
-    if (side != out) x = resize(tape, x, legacy, h, out);
-    // Zero rows after each channel plane: transfer copies and fills into the
-    // square (several times faster than the pad shader on lavapipe).
-    const std::int64_t cols = x.shape()[3], plane_in = h * cols, plane_sq = w * cols;
-    const Tensor square = Tensor::empty(image.device(), Shape{1, 3, w, cols});
-    for (std::int64_t c = 0; c < 3; ++c) {
-      stream.copy(x.value().view(Shape{plane_in}, c * plane_in),
-                  square.view(Shape{plane_in}, c * plane_sq));
-      stream.fill(square.view(Shape{plane_sq - plane_in}, c * plane_sq + plane_in), 0.f);
-    }
-    x = Var(square);
-  } else {
-    if (side != out) x = resize(tape, x, legacy, out, w);
-    x = pad(tape, x, k::Pad2d{0, 0, 0, std::int32_t(h - w)}, 0.f);
-  }
-  if (side != out) x = resize(tape, x, legacy, out, out);
-  return x.value();
+  // image, then resizeBilinear(square, out): one pass that reads the taps in
+  // the padding as zeros, so the square is never built.
+  const Tensor y = Tensor::empty(image.device(), Shape{1, 3, out, out});
+  k::resize_zero_padded(stream, image, side, side, k::ResizeMode::bilinear_legacy, y);
+  return y;
 }
 
 std::vector<FaceDetection> TinyFaceDetector::detect(Stream& stream, const Tensor& image,

@@ -1,6 +1,8 @@
 #version 450
 // Bilinear / nearest resize of NCHW images (modes: see kernels/resize.hpp)
-// and its adjoint. BACKWARD = 0: each invocation computes 4 consecutive
+// and its adjoint. The forward samples an in_h × in_w canvas whose top-left
+// src_h × src_w corner is the source plane and the rest zeros (a plain resize:
+// the canvas is the source; resize_zero_padded: pad, then resize, in one pass). BACKWARD = 0: each invocation computes 4 consecutive
 // output pixels of one row. BACKWARD = 1: each invocation computes 4
 // consecutive input-pixel gradients, gathering over the output pixels whose
 // taps touch them (the same tap function as the forward, so the two agree
@@ -13,6 +15,7 @@ layout(std430, binding = 1) writeonly buffer Dst { float dst[]; };  // y or dx
 layout(push_constant) uniform Push {
   uint planes; int in_h; int in_w; int out_h; int out_w; uint mode; float scale_h; float scale_w;
   uvec2 blocks_magic; uvec2 rows_magic;  // divisors: blocks per row, rows per plane (written)
+  int src_h; int src_w;                  // the source planes (forward; <= in_h, in_w)
 } pc;
 
 
@@ -60,6 +63,11 @@ int first_output(int i, int n_in, int n_out, float scale) {
   return d;
 }
 
+// The canvas at (yy, xx) of the plane starting at base: zero outside the source.
+float canvas_at(int base, int yy, int xx) {
+  return yy < pc.src_h && xx < pc.src_w ? texelFetch(src, base + yy * pc.src_w + xx).r : 0.0;
+}
+
 void forward_pass(uint item) {
   const uint blocks_x = (uint(pc.out_w) + 3u) / 4u;
   if (item >= pc.planes * uint(pc.out_h) * blocks_x) return;
@@ -67,11 +75,10 @@ void forward_pass(uint item) {
   const int ox0 = int(item - row * blocks_x) * 4;
   const uint plane = fast_div(row, pc.rows_magic);
   const int oy = int(row - plane * uint(pc.out_h));
-  const int base = int(plane) * pc.in_h * pc.in_w;
+  const int base = int(plane) * pc.src_h * pc.src_w;
   int y0, y1;
   float ly;
   taps(oy, pc.in_h, pc.scale_h, y0, y1, ly);
-  const int r0 = base + y0 * pc.in_w, r1 = base + y1 * pc.in_w;
   [[unroll]] for (int k = 0; k < 4; ++k) {
     const int ox = ox0 + k;
     if (ox >= pc.out_w) break;
@@ -79,11 +86,11 @@ void forward_pass(uint item) {
     float lx;
     taps(ox, pc.in_w, pc.scale_w, x0, x1, lx);
     if (pc.mode == 3u) {  // nearest: one tap
-      dst[row * uint(pc.out_w) + uint(ox)] = texelFetch(src, r0 + x0).r;
+      dst[row * uint(pc.out_w) + uint(ox)] = canvas_at(base, y0, x0);
       continue;
     }
-    const float top = (1.0 - lx) * texelFetch(src, r0 + x0).r + lx * texelFetch(src, r0 + x1).r;
-    const float bot = (1.0 - lx) * texelFetch(src, r1 + x0).r + lx * texelFetch(src, r1 + x1).r;
+    const float top = (1.0 - lx) * canvas_at(base, y0, x0) + lx * canvas_at(base, y0, x1);
+    const float bot = (1.0 - lx) * canvas_at(base, y1, x0) + lx * canvas_at(base, y1, x1);
     dst[row * uint(pc.out_w) + uint(ox)] = (1.0 - ly) * top + ly * bot;
   }
 }

@@ -70,6 +70,55 @@ TEST(ResizeKernels, MatchReference) {
   }
 }
 
+// One pass over a virtual zero-padded canvas against the reference resize of
+// the padded planes built on the host (padding at the bottom, the right, both,
+// or none; down- and upscaled).
+TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 602;
+  std::mt19937 rng(seed);
+  auto uni = [&](int lo, int hi) {
+    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
+  };
+  struct PadCase {
+    Case k;
+    std::int64_t ch, cw;  // the canvas
+  };
+  std::vector<PadCase> pads = {{{1, 3, 7, 12, 5, 5}, 12, 12},
+                               {{1, 3, 12, 7, 9, 9}, 12, 12},
+                               {{2, 1, 5, 5, 8, 3}, 9, 6},
+                               {{1, 2, 6, 4, 6, 4}, 6, 4}};
+  for (int i = 0; i < 6; ++i) {
+    const Case k{uni(1, 2), uni(1, 3), uni(1, 30), uni(1, 30), uni(1, 40), uni(1, 40)};
+    pads.push_back({k, k.h + uni(0, 20), k.w + uni(0, 20)});
+  }
+  for (const auto& [k, ch, cw] : pads) {
+    for (ResizeMode m : kModes) {
+      SCOPED_TRACE(str(k, m) + " canvas " + std::to_string(ch) + "x" + std::to_string(cw) +
+                   " seed=" + std::to_string(seed));
+      const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
+      const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
+      std::vector<float> canvas(std::size_t(k.n * k.c * ch * cw), 0.f);
+      for (std::int64_t p = 0; p < k.n * k.c; ++p) {
+        for (std::int64_t r = 0; r < k.h; ++r) {
+          for (std::int64_t c = 0; c < k.w; ++c) {
+            canvas[std::size_t((p * ch + r) * cw + c)] = xv[std::size_t((p * k.h + r) * k.w + c)];
+          }
+        }
+      }
+      Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
+      Stream s(dev);
+      kernels::resize_zero_padded(s, x, ch, cw, m, y);
+      s.run();
+      const auto want = ref::resize(canvas, k.n * k.c, ch, cw, k.oh, k.ow, m);
+      const auto got = y.download();
+      for (std::size_t i = 0; i < want.size(); ++i) {
+        ASSERT_NEAR(got[i], want[i], 1e-5 * (1 + std::fabs(want[i]))) << "y at " << i;
+      }
+    }
+  }
+}
+
 TEST(ResizeKernels, ConventionsOnKnownValues) {
   // x = 0..7 on one row; downsample 8 -> 4 and upsample 4 -> 8.
   Device& dev = test::device();
@@ -135,6 +184,12 @@ TEST(ResizeKernels, BadInputsAreClearErrors) {
   Tensor flat = Tensor::empty(dev, {64});
   EXPECT_THROW(kernels::resize(s, flat, ResizeMode::nearest, x), InvalidArgument);
   EXPECT_THROW(kernels::resize(s, x, static_cast<ResizeMode>(7), x), InvalidArgument);
+  try {  // a canvas smaller than x
+    kernels::resize_zero_padded(s, x, 8, 7, ResizeMode::bilinear_legacy, x);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("canvas 8×7"), std::string::npos) << e.what();
+  }
   try {
     Tensor empty = Tensor::empty(dev, {1, 2, 0, 8});
     kernels::resize_backward(s, x, ResizeMode::bilinear_legacy, empty);
