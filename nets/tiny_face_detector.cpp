@@ -234,7 +234,7 @@ Tensor TinyFaceDetector::preprocess(Stream& stream, const Tensor& image, int inp
   // padToSquare(img, isCenterImage = false) puts all the padding after the
   // image, then resizeBilinear(square, out): one pass that reads the taps in
   // the padding as zeros, so the square is never built.
-  const Tensor y = Tensor::empty(image.device(), Shape{1, 3, out, out});
+  Tensor y = Tensor::empty(image.device(), Shape{1, 3, out, out});
   k::resize_zero_padded(stream, image, side, side, k::ResizeMode::bilinear_legacy, y);
   return y;
 }
