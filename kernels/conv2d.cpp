@@ -398,7 +398,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
     case Conv2dAlgo::direct: {
       const std::uint64_t n = std::uint64_t(c.n) * c.cout * c.hout * c.wout;
       stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y), texel(r)}, c,
-                      groups_1d(div_up(n, 256), info));
+                      groups_1d(div_up(n, 256), info), {0, 0, 0, 0, 0, 0, 0, 0, c.has_res});
       return;
     }
     case Conv2dAlgo::pointwise: {
@@ -420,7 +420,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       stream.dispatch(kPointwise,
                       {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {vec4 ? 1u : 0u, wg});
+                      c, g, {vec4 ? 1u : 0u, wg, 0, 0, 0, 0, 0, 0, c.has_res});
       return;
     }
     case Conv2dAlgo::blocked: {
@@ -438,7 +438,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx, t.px, t.cg, t.ry, wg});
+                      c, g, {c.kh, c.kw, c.sx, c.dx, t.px, t.cg, t.ry, wg, c.has_res});
       return;
     }
     case Conv2dAlgo::depthwise: {
@@ -453,7 +453,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       stream.dispatch(
           kDepthwise,
           {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(yt), texel(r)}, c,
-          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg});
+          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res});
       return;
     }
   }

@@ -28,16 +28,20 @@ layout(push_constant) uniform Push {
 // conv_act(): y = act(conv + bias + residual).
 #ifdef CONV2D_RESIDUAL
 layout(binding = 4) uniform samplerBuffer res;
+// pc.has_res as specialization constant 8: llvmpipe runs both sides of a
+// branch on a push constant (masked, not skipped), so a runtime flag would
+// fetch the residual for every output even when there is none.
+layout(constant_id = 8) const uint HAS_RES = 0u;
 // The residual at output channel co, flat pixel pix (oy·wout + ox) of image n.
 float conv_residual(uint n, uint co, uint pix) {
-  if (pc.has_res == 0u || co >= pc.cres) return 0.0;
+  if (HAS_RES == 0u || co >= pc.cres) return 0.0;
   return texelFetch(res, int((n * pc.cres + co) * pc.hout * pc.wout + pix)).r;
 }
 // Also has_res == 2: the residual in a padded layout (planes hp × wp, at
 // (pt, pl)): blocked, this conv's own padded input (a stride-1 'same' conv's);
 // pointwise (no padding of its own), the padded tensor's.
 float conv_residual_at(uint n, uint co, uint oy, uint ox) {
-  if (pc.has_res != 2u) return conv_residual(n, co, oy * pc.wout + ox);
+  if (HAS_RES != 2u) return conv_residual(n, co, oy * pc.wout + ox);
   if (co >= pc.cres) return 0.0;
   const int row = int((n * pc.cres + co) * pc.hp + oy) + pc.pt;
   return texelFetch(res, row * int(pc.wp) + int(ox) + pc.pl).r;
