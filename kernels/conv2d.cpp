@@ -164,6 +164,10 @@ ConvPush push_of(const Dims& d, const Conv2dParams& p) {
 // ry rows × px consecutive pixels (cg·ry·px vec4 accumulators).
 struct BlockedTile {
   std::uint32_t px = kPx, cg = 2, ry = 1;
+  // Depthwise: extra zero columns left of the padding, so that the interior
+  // (the producer's output) starts at a multiple of 4 and the pointwise conv
+  // before it stores whole vec4 quads (the padded tensor's left = pad left + sh).
+  std::uint32_t sh = 0;
 };
 
 // The one choice of tile for these shapes (the padded input's geometry
@@ -206,14 +210,15 @@ BlockedTile blocked_tile(const ConvPush& c) {
 
 // Padded-input geometry for the blocked and depthwise kernels: every row read
 // by a block of px × ry output pixels lies inside [hp, wp].
-void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1) {
+// sh: zero columns before the left padding (BlockedTile::sh).
+void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1, std::uint32_t sh = 0) {
   c.wblocks = (c.wout + px - 1) / px;
   c.hp = (div_up(c.hout, ry) * ry - 1) * c.sy + (c.kh - 1) * c.dy + 1;
   // wp rounded up to 4: rows start 16-byte aligned, read as vec4 texels.
-  c.wp = div_up((c.wblocks * px - 1) * c.sx + (c.kw - 1) * c.dx + 1, 4) * 4;
+  c.wp = div_up((c.wblocks * px - 1) * c.sx + (c.kw - 1) * c.dx + 1 + sh, 4) * 4;
 }
 
-void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry); }
+void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry, t.sh); }
 
 // The depthwise kernel's tile: one channel × ry rows × px pixels (px · ry
 // float accumulators). A row of up to kMaxDwRowTile pixels is one block;
@@ -225,6 +230,7 @@ void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry); 
 BlockedTile depthwise_tile(const ConvPush& c) {
   BlockedTile t;
   t.cg = 1;
+  t.sh = (4u - std::uint32_t(c.pl) % 4u) % 4u;
   if (c.wout <= kMaxDwRowTile) {
     t.px = c.wout;
   } else if (c.sx == 1) {
@@ -417,10 +423,13 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
+      // y by quads of pixels (the shader's STORE4): plain, or padded with aligned rows.
+      const bool store4 = vec4 && (y_padded == nullptr ||
+                                   (c.w % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0));
       stream.dispatch(kPointwise,
                       {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {vec4 ? 1u : 0u, wg, 0, 0, 0, 0, 0, 0, c.has_res});
+                      c, g, {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, 0, 0, 0, 0, 0, c.has_res});
       return;
     }
     case Conv2dAlgo::blocked: {
@@ -444,6 +453,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
     case Conv2dAlgo::depthwise: {
       const BlockedTile t = depthwise_tile(c);
       set_padded(c, t);
+      c.pl += std::int32_t(t.sh);  // where pad_input puts x (the shader does not read pl)
       const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
       // (pixel block, channel) pairs, flattened (the shader splits them).
       const std::uint64_t blocks = std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * c.cout;
@@ -453,7 +463,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       stream.dispatch(
           kDepthwise,
           {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(yt), texel(r)}, c,
-          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res});
+          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res, t.sh});
       return;
     }
   }
@@ -529,13 +539,14 @@ namespace {
 // The padded input geometry the blocked or depthwise kernel reads for these shapes.
 Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x, Conv2dAlgo algo) {
   ConvPush c = push_of(d, p);
-  set_padded(c, padded_tile(c, algo));
+  const BlockedTile t = padded_tile(c, algo);
+  set_padded(c, t);
   Conv2dPadded l;
   l.shape = x;
   l.hp = c.hp;
   l.wp = c.wp;
   l.top = p.pad.top;
-  l.left = p.pad.left;
+  l.left = p.pad.left + std::int32_t(t.sh);
   return l;
 }
 

@@ -19,7 +19,10 @@ layout(constant_id = 3) const uint DX = 1u;
 layout(constant_id = 4) const uint PX = 8u;
 layout(constant_id = 5) const uint RY = 1u;  // output rows per invocation (RY > 1: sy = dy = 1)
 layout(constant_id = 6) const uint XRELU = 0u;
-const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;
+// Zero columns before the left padding (kernels/conv2d.cpp, BlockedTile::sh):
+// a block's taps start SH columns into its 4-aligned row segment.
+layout(constant_id = 9) const uint SH = 0u;
+const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u + SH;
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
 const uint NR = RY + KH - 1u;       // input rows of one block when RY > 1
 
@@ -58,7 +61,7 @@ void main() {
       [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
         const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
         [[unroll]] for (uint p = 0u; p < PX; ++p) {
-          const uint k = p * SX + kx * DX;
+          const uint k = p * SX + kx * DX + SH;
           acc[p] = fma(r[k / 4u][k % 4u], wv, acc[p]);
         }
       }
@@ -75,7 +78,7 @@ void main() {
         const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
         [[unroll]] for (uint q = 0u; q < RY; ++q) {
           [[unroll]] for (uint p = 0u; p < PX; ++p) {
-            const uint col = p * SX + kx * DX;
+            const uint col = p * SX + kx * DX + SH;
             acc[q * PX + p] = fma(r[(q + ky) * SEG4 + col / 4u][col % 4u], wv, acc[q * PX + p]);
           }
         }

@@ -12,11 +12,17 @@
 #include "conv2d_common.glsl"
 layout(local_size_x_id = 1) in;  // 8..64: fewer lanes per group on small outputs
 layout(constant_id = 0) const uint VEC4 = 0u;  // h·w % 4 == 0: pixels read as two vec4 texels
+// VEC4 and y stored by quads of pixels, one vec4 each (4× fewer stores, which
+// llvmpipe runs lane by lane): y plain (a quad is contiguous even across a
+// row end), or padded with w, yw and yleft multiples of 4 (a quad is 4
+// aligned pixels of one row).
+layout(constant_id = 2) const uint STORE4 = 0u;
 const uint PX = 8u;
 layout(binding = 0) uniform samplerBuffer x;       // [n, cin, h·w]; RGBA32F view when VEC4
 layout(binding = 1) uniform samplerBuffer packed;  // RGBA32F: [cout/8][cin][2]
 layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
+layout(std430, binding = 3) writeonly buffer Y4 { vec4 y4[]; };  // the same buffer (STORE4)
 
 vec4 a0[PX], a1[PX];  // output channels 0..3 and 4..7 of the block, per pixel
 int pix[PX];          // !VEC4: the pixels (a last block's extra lanes re-read the last one)
@@ -81,6 +87,35 @@ void main() {
   const uint yplane = pc.yh * pc.yw;
   const uint ybase = (n * pc.cout + cob * 8u) * yplane;
   uint oy = pix0 / pc.w, ox = pix0 - oy * pc.w;  // of pixel pix0 + p (one division)
+  if (STORE4 != 0u) {
+    [[unroll]] for (uint h = 0u; h < 2u; ++h) {
+      const uint qy = oy, qx = ox;  // the quad's first pixel
+      vec4 v[8];                    // its 8 channels
+      [[unroll]] for (uint p = 0u; p < 4u; ++p) {
+        const uint q = 4u * h + p;
+        if (p > 0u && ++ox == pc.w) {
+          ox = 0u;
+          ++oy;
+        }
+        [[unroll]] for (uint j = 0u; j < 4u; ++j) {
+          v[j][p] = conv_act(a0[q][j] + b[j] + conv_residual_at(n, cob * 8u + j, oy, ox));
+          v[4u + j][p] =
+              conv_act(a1[q][j] + b[4u + j] + conv_residual_at(n, cob * 8u + 4u + j, oy, ox));
+        }
+      }
+      if (++ox == pc.w) {  // to the next quad
+        ox = 0u;
+        ++oy;
+      }
+      if (pix0 + 4u * h < hw && qy + pc.ytop < pc.yh && qx + pc.yleft < pc.yw) {
+        const uint o = (ybase + (qy + pc.ytop) * pc.yw + qx + pc.yleft) / 4u;
+        [[unroll]] for (uint j = 0u; j < 8u; ++j) {
+          if (cob * 8u + j < pc.cout) y4[o + j * (yplane / 4u)] = v[j];
+        }
+      }
+    }
+    return;
+  }
   [[unroll]] for (uint p = 0u; p < PX; ++p) {
     const uint pix = pix0 + p;
     if (p > 0u && ++ox == pc.w) {

@@ -153,6 +153,8 @@ std::vector<Case> edge_cases() {
   c.d = {1, 16, 7, 7, 24, 1, 1};  // pointwise, 49 pixels: scalar reads, channel blocks flattened
   c.p = {};
   cases.push_back(c);
+  c.d = {2, 6, 6, 6, 12, 1, 1};  // pointwise, vec4 stores of quads that cross a row end
+  cases.push_back(c);
   return cases;
 }
 
