@@ -426,10 +426,15 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       // y by quads of pixels (the shader's STORE4): plain, or padded with aligned rows.
       const bool store4 = vec4 && (y_padded == nullptr ||
                                    (c.w % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0));
+      // The residual by quads too (RES4): plain, or padded with aligned rows.
+      const bool res4 = store4 && (c.has_res == 1 || (c.has_res == 2 && c.w % 4 == 0 &&
+                                                       c.wp % 4 == 0 && c.pl % 4 == 0));
       stream.dispatch(kPointwise,
                       {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, 0, 0, 0, 0, 0, c.has_res});
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt),
+                       texel(r, res4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT)},
+                      c, g,
+                      {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, res4 ? 1u : 0u, 0, 0, 0, 0, c.has_res});
       return;
     }
     case Conv2dAlgo::blocked: {

@@ -16,6 +16,7 @@ struct ResizePush {
   float scale_h, scale_w;
   Magic blocks_magic, rows_magic;  // blocks per row, rows per plane of the written tensor
   std::int32_t src_h, src_w;       // the source planes in the canvas (forward)
+  std::int32_t src_top, src_left;  // where they sit
 };
 static_assert(sizeof(ResizePush) <= 128);
 
@@ -26,11 +27,11 @@ float axis_scale(ResizeMode mode, std::int64_t in, std::int64_t out) {
   return static_cast<float>(in) / static_cast<float>(out);
 }
 
-// in: the sampled canvas (the source itself, or the source zero-padded at the
-// bottom and right to in's H × W); src_hw: the source planes.
+// in: the sampled canvas (the source itself, or the source zero-padded to in's
+// H × W); src: the source planes' height, width, top and left in it.
 void dispatch_resize(Stream& stream, const Tensor& src, const Tensor& dst, const Shape& in,
                      const Shape& out, ResizeMode mode, bool backward,
-                     std::array<std::int64_t, 2> src_hw) {
+                     std::array<std::int64_t, 4> src_at) {
   static const KernelDef k{
       "resize", {BindingKind::texel, BindingKind::storage}, sizeof(ResizePush)};
   if (static_cast<std::uint32_t>(mode) > 3) {
@@ -49,8 +50,10 @@ void dispatch_resize(Stream& stream, const Tensor& src, const Tensor& dst, const
                         axis_scale(mode, in[3], out[3]),
                         magic(div_up(w[3], 4)),
                         magic(static_cast<std::uint64_t>(w[2])),
-                        static_cast<std::int32_t>(src_hw[0]),
-                        static_cast<std::int32_t>(src_hw[1])};
+                        static_cast<std::int32_t>(src_at[0]),
+                        static_cast<std::int32_t>(src_at[1]),
+                        static_cast<std::int32_t>(src_at[2]),
+                        static_cast<std::int32_t>(src_at[3])};
   const std::uint64_t items = std::uint64_t(w[0] * w[1] * w[2]) * div_up(w[3], 4);
   stream.dispatch(k, {texel(src), vkjr2::out(dst)}, push,
                   groups_1d(div_up(items, 256), stream.device().info()), {backward ? 1u : 0u});
@@ -74,24 +77,29 @@ void resize(Stream& stream, const Tensor& x, ResizeMode mode, const Tensor& y) {
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(y, 4, op, "y");
   require_batch_match(x, y, op, "x", "y");
-  dispatch_resize(stream, x, y, x.shape(), y.shape(), mode, false, {x.shape()[2], x.shape()[3]});
+  dispatch_resize(stream, x, y, x.shape(), y.shape(), mode, false,
+                  {x.shape()[2], x.shape()[3], 0, 0});
 }
 
-void resize_zero_padded(Stream& stream, const Tensor& x, std::int64_t canvas_h,
-                        std::int64_t canvas_w, ResizeMode mode, const Tensor& y) {
+void resize_zero_padded(Stream& stream, const Tensor& x, const ResizeCanvas& canvas,
+                        ResizeMode mode, const Tensor& y) {
   const char* op = "resize_zero_padded";
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(y, 4, op, "y");
   require_batch_match(x, y, op, "x", "y");
   const std::int64_t h = x.shape()[2], w = x.shape()[3];
-  if (canvas_h < h || canvas_w < w || canvas_h > INT32_MAX || canvas_w > INT32_MAX) {
+  const auto& c = canvas;
+  if (c.top < 0 || c.left < 0 || c.top + h > c.height || c.left + w > c.width ||
+      c.height > INT32_MAX || c.width > INT32_MAX) {
     throw InvalidArgument(op,
-                          "canvas " + std::to_string(canvas_h) + "×" + std::to_string(canvas_w) +
-                              " does not hold x " + x.shape().str(),
-                          "pass a canvas at least x's height and width (the padded size)");
+                          "canvas " + std::to_string(c.height) + "×" + std::to_string(c.width) +
+                              " does not hold x " + x.shape().str() + " at (" +
+                              std::to_string(c.top) + ", " + std::to_string(c.left) + ")",
+                          "pass a canvas that holds x at a non-negative (top, left): the padded "
+                          "size and the padding before x");
   }
-  const Shape canvas{x.shape()[0], x.shape()[1], canvas_h, canvas_w};
-  dispatch_resize(stream, x, y, canvas, y.shape(), mode, false, {h, w});
+  const Shape in{x.shape()[0], x.shape()[1], c.height, c.width};
+  dispatch_resize(stream, x, y, in, y.shape(), mode, false, {h, w, c.top, c.left});
 }
 
 void resize_backward(Stream& stream, const Tensor& dy, ResizeMode mode, const Tensor& dx) {
@@ -100,7 +108,7 @@ void resize_backward(Stream& stream, const Tensor& dy, ResizeMode mode, const Te
   require_f32_rank(dx, 4, op, "dx");
   require_batch_match(dx, dy, op, "dx", "dy");
   dispatch_resize(stream, dy, dx, dx.shape(), dy.shape(), mode, true,
-                  {dx.shape()[2], dx.shape()[3]});
+                  {dx.shape()[2], dx.shape()[3], 0, 0});
 }
 
 }  // namespace vkjr2::kernels

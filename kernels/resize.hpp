@@ -27,12 +27,17 @@ enum class ResizeMode : std::uint32_t {
 // y: [N, C, OH, OW] (any positive OH, OW). Bilinear taps beyond the last
 // pixel clamp to it.
 void resize(Stream& stream, const Tensor& x, ResizeMode mode, const Tensor& y);
-// y = resize(x zero-padded at the bottom and right to canvas_h × canvas_w),
-// in one pass that never builds the padded canvas (face-api's padToSquare +
-// resizeBilinear): taps that fall in the padding read 0, so the result equals
-// pad then resize exactly. canvas_h ≥ H, canvas_w ≥ W. Forward only.
-void resize_zero_padded(Stream& stream, const Tensor& x, std::int64_t canvas_h,
-                        std::int64_t canvas_w, ResizeMode mode, const Tensor& y);
+// A zero canvas of height × width holding x with its top-left pixel at (top, left).
+struct ResizeCanvas {
+  std::int64_t height = 0, width = 0;
+  std::int64_t top = 0, left = 0;
+};
+// y = resize(x zero-padded to the canvas), in one pass that never builds the
+// padded canvas (face-api's padToSquare + resizeBilinear): taps that fall in
+// the padding read 0, so the result equals pad then resize exactly. The
+// canvas must hold x. Forward only.
+void resize_zero_padded(Stream& stream, const Tensor& x, const ResizeCanvas& canvas,
+                        ResizeMode mode, const Tensor& y);
 // dx = the adjoint of resize applied to dy, written as a gather over the
 // output pixels each input pixel contributes to (deterministic, dx fully
 // overwritten). dy: [N, C, OH, OW], dx: [N, C, H, W].

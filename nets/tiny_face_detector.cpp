@@ -235,7 +235,8 @@ Tensor TinyFaceDetector::preprocess(Stream& stream, const Tensor& image, int inp
   // image, then resizeBilinear(square, out): one pass that reads the taps in
   // the padding as zeros, so the square is never built.
   Tensor y = Tensor::empty(image.device(), Shape{1, 3, out, out});
-  k::resize_zero_padded(stream, image, side, side, k::ResizeMode::bilinear_legacy, y);
+  k::resize_zero_padded(stream, image, k::ResizeCanvas{side, side, 0, 0},
+                        k::ResizeMode::bilinear_legacy, y);
   return y;
 }
 

@@ -17,6 +17,9 @@ layout(constant_id = 0) const uint VEC4 = 0u;  // h·w % 4 == 0: pixels read as 
 // row end), or padded with w, yw and yleft multiples of 4 (a quad is 4
 // aligned pixels of one row).
 layout(constant_id = 2) const uint STORE4 = 0u;
+// STORE4 and the residual read by quads as well (an RGBA32F view): plain, or
+// padded with w, wp and pl multiples of 4.
+layout(constant_id = 3) const uint RES4 = 0u;
 const uint PX = 8u;
 layout(binding = 0) uniform samplerBuffer x;       // [n, cin, h·w]; RGBA32F view when VEC4
 layout(binding = 1) uniform samplerBuffer packed;  // RGBA32F: [cout/8][cin][2]
@@ -46,6 +49,15 @@ void accumulate(int xbase, vec4 w0, vec4 w1) {
       a1[p] = fma(vec4(v), w1, a1[p]);
     }
   }
+}
+
+// RES4: the residual of channel co at the quad starting at flat pixel qpix,
+// row qy, column qx.
+vec4 residual_quad(uint n, uint co, uint qpix, uint qy, uint qx) {
+  if (co >= pc.cres) return vec4(0.0);
+  if (HAS_RES == 1u) return texelFetch(res, int(((n * pc.cres + co) * pc.h * pc.w + qpix) / 4u));
+  const uint row = (n * pc.cres + co) * pc.hp + qy + uint(pc.pt);
+  return texelFetch(res, int((row * pc.wp + qx + uint(pc.pl)) / 4u));
 }
 
 void main() {
@@ -98,14 +110,21 @@ void main() {
           ++oy;
         }
         [[unroll]] for (uint j = 0u; j < 4u; ++j) {
-          v[j][p] = conv_act(a0[q][j] + b[j] + conv_residual_at(n, cob * 8u + j, oy, ox));
-          v[4u + j][p] =
-              conv_act(a1[q][j] + b[4u + j] + conv_residual_at(n, cob * 8u + 4u + j, oy, ox));
+          v[j][p] = a0[q][j] + b[j];
+          v[4u + j][p] = a1[q][j] + b[4u + j];
+          if (RES4 == 0u) {
+            v[j][p] += conv_residual_at(n, cob * 8u + j, oy, ox);
+            v[4u + j][p] += conv_residual_at(n, cob * 8u + 4u + j, oy, ox);
+          }
         }
       }
       if (++ox == pc.w) {  // to the next quad
         ox = 0u;
         ++oy;
+      }
+      [[unroll]] for (uint j = 0u; j < 8u; ++j) {
+        if (RES4 != 0u) v[j] += residual_quad(n, cob * 8u + j, pix0 + 4u * h, qy, qx);
+        [[unroll]] for (uint p = 0u; p < 4u; ++p) v[j][p] = conv_act(v[j][p]);
       }
       if (pix0 + 4u * h < hw && qy + pc.ytop < pc.yh && qx + pc.yleft < pc.yw) {
         const uint o = (ybase + (qy + pc.ytop) * pc.yw + qx + pc.yleft) / 4u;

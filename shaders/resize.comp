@@ -1,8 +1,9 @@
 #version 450
 // Bilinear / nearest resize of NCHW images (modes: see kernels/resize.hpp)
-// and its adjoint. The forward samples an in_h × in_w canvas whose top-left
-// src_h × src_w corner is the source plane and the rest zeros (a plain resize:
-// the canvas is the source; resize_zero_padded: pad, then resize, in one pass). BACKWARD = 0: each invocation computes 4 consecutive
+// and its adjoint. The forward samples an in_h × in_w canvas that holds the
+// src_h × src_w source plane at (src_top, src_left) and zeros elsewhere (a
+// plain resize: the canvas is the source; resize_zero_padded: pad, then
+// resize, in one pass). BACKWARD = 0: each invocation computes 4 consecutive
 // output pixels of one row. BACKWARD = 1: each invocation computes 4
 // consecutive input-pixel gradients, gathering over the output pixels whose
 // taps touch them (the same tap function as the forward, so the two agree
@@ -16,6 +17,7 @@ layout(push_constant) uniform Push {
   uint planes; int in_h; int in_w; int out_h; int out_w; uint mode; float scale_h; float scale_w;
   uvec2 blocks_magic; uvec2 rows_magic;  // divisors: blocks per row, rows per plane (written)
   int src_h; int src_w;                  // the source planes (forward; <= in_h, in_w)
+  int src_top; int src_left;             // where they sit in the canvas
 } pc;
 
 
@@ -65,7 +67,9 @@ int first_output(int i, int n_in, int n_out, float scale) {
 
 // The canvas at (yy, xx) of the plane starting at base: zero outside the source.
 float canvas_at(int base, int yy, int xx) {
-  return yy < pc.src_h && xx < pc.src_w ? texelFetch(src, base + yy * pc.src_w + xx).r : 0.0;
+  const int sy = yy - pc.src_top, sx = xx - pc.src_left;
+  const bool in_src = sy >= 0 && sy < pc.src_h && sx >= 0 && sx < pc.src_w;
+  return in_src ? texelFetch(src, base + sy * pc.src_w + sx).r : 0.0;
 }
 
 void forward_pass(uint item) {

@@ -71,8 +71,8 @@ TEST(ResizeKernels, MatchReference) {
 }
 
 // One pass over a virtual zero-padded canvas against the reference resize of
-// the padded planes built on the host (padding at the bottom, the right, both,
-// or none; down- and upscaled).
+// the padded planes built on the host (padding before and after x on either
+// axis, or none; down- and upscaled).
 TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
   Device& dev = test::device();
   const std::uint32_t seed = 602;
@@ -82,19 +82,23 @@ TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
   };
   struct PadCase {
     Case k;
-    std::int64_t ch, cw;  // the canvas
+    kernels::ResizeCanvas canvas;
   };
-  std::vector<PadCase> pads = {{{1, 3, 7, 12, 5, 5}, 12, 12},
-                               {{1, 3, 12, 7, 9, 9}, 12, 12},
-                               {{2, 1, 5, 5, 8, 3}, 9, 6},
-                               {{1, 2, 6, 4, 6, 4}, 6, 4}};
+  std::vector<PadCase> pads = {{{1, 3, 7, 12, 5, 5}, {12, 12, 0, 0}},
+                               {{1, 3, 12, 7, 9, 9}, {12, 12, 0, 0}},
+                               {{1, 3, 12, 7, 9, 9}, {12, 12, 0, 2}},  // centred (face-api's)
+                               {{2, 1, 5, 5, 8, 3}, {9, 6, 3, 1}},
+                               {{1, 2, 6, 4, 6, 4}, {6, 4, 0, 0}}};
   for (int i = 0; i < 6; ++i) {
     const Case k{uni(1, 2), uni(1, 3), uni(1, 30), uni(1, 30), uni(1, 40), uni(1, 40)};
-    pads.push_back({k, k.h + uni(0, 20), k.w + uni(0, 20)});
+    const std::int64_t top = uni(0, 10), left = uni(0, 10);
+    pads.push_back({k, {k.h + top + uni(0, 10), k.w + left + uni(0, 10), top, left}});
   }
-  for (const auto& [k, ch, cw] : pads) {
+  for (const auto& [k, canvas_at] : pads) {
+    const auto [ch, cw, top, left] = canvas_at;
     for (ResizeMode m : kModes) {
       SCOPED_TRACE(str(k, m) + " canvas " + std::to_string(ch) + "x" + std::to_string(cw) +
+                   " at " + std::to_string(top) + "," + std::to_string(left) +
                    " seed=" + std::to_string(seed));
       const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
       const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
@@ -102,13 +106,14 @@ TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
       for (std::int64_t p = 0; p < k.n * k.c; ++p) {
         for (std::int64_t r = 0; r < k.h; ++r) {
           for (std::int64_t c = 0; c < k.w; ++c) {
-            canvas[std::size_t((p * ch + r) * cw + c)] = xv[std::size_t((p * k.h + r) * k.w + c)];
+            canvas[std::size_t((p * ch + top + r) * cw + left + c)] =
+                xv[std::size_t((p * k.h + r) * k.w + c)];
           }
         }
       }
       Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
       Stream s(dev);
-      kernels::resize_zero_padded(s, x, ch, cw, m, y);
+      kernels::resize_zero_padded(s, x, canvas_at, m, y);
       s.run();
       const auto want = ref::resize(canvas, k.n * k.c, ch, cw, k.oh, k.ow, m);
       const auto got = y.download();
@@ -185,10 +190,16 @@ TEST(ResizeKernels, BadInputsAreClearErrors) {
   EXPECT_THROW(kernels::resize(s, flat, ResizeMode::nearest, x), InvalidArgument);
   EXPECT_THROW(kernels::resize(s, x, static_cast<ResizeMode>(7), x), InvalidArgument);
   try {  // a canvas smaller than x
-    kernels::resize_zero_padded(s, x, 8, 7, ResizeMode::bilinear_legacy, x);
+    kernels::resize_zero_padded(s, x, {8, 7, 0, 0}, ResizeMode::bilinear_legacy, x);
     FAIL();
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("canvas 8×7"), std::string::npos) << e.what();
+  }
+  try {  // x does not fit at that offset
+    kernels::resize_zero_padded(s, x, {10, 10, 3, 0}, ResizeMode::bilinear_legacy, x);
+    FAIL();
+  } catch (const InvalidArgument& e) {
+    EXPECT_NE(std::string(e.what()).find("at (3, 0)"), std::string::npos) << e.what();
   }
   try {
     Tensor empty = Tensor::empty(dev, {1, 2, 0, 8});

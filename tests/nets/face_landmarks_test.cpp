@@ -162,6 +162,31 @@ TEST(FaceLandmark68Net, InferenceMatchesTheTapedPath) {
   for (std::size_t i = 0; i < pair.size(); ++i) EXPECT_NEAR(pair[i], inferred[i], 1e-5) << i;
 }
 
+// to_landmark_input without gradients (one pass over the virtual square)
+// against the taped pad + resize, on crops padded across or down, down- and
+// upscaled, and one already 112 on its long side.
+TEST(FaceLandmark68Net, LandmarkInputWithoutGradientsMatchesPadThenResize) {
+  const std::array<std::array<std::int64_t, 2>, 5> sizes = {
+      {{255, 312}, {312, 255}, {60, 90}, {97, 41}, {112, 80}}};
+  for (const auto& [h, w] : sizes) {
+    SCOPED_TRACE(std::to_string(h) + "×" + std::to_string(w));
+    const auto values = test::random_floats(std::size_t(2 * 3 * h * w), std::uint32_t(h * w), 0.f,
+                                            255.f);
+    const Tensor crops = Tensor::from(test::device(), Shape{2, 3, h, w}, values);
+    const auto run = [&](bool with_grad) {
+      Stream stream(test::device());
+      Tape tape(stream, true);
+      const Var x112 = to_landmark_input(tape, Var(crops, with_grad));
+      stream.run();
+      EXPECT_EQ(x112.shape(), (Shape{2, 3, 112, 112}));
+      return x112.value().download();
+    };
+    const std::vector<float> fused = run(false), taped = run(true);
+    ASSERT_EQ(fused.size(), taped.size());
+    for (std::size_t i = 0; i < fused.size(); ++i) ASSERT_NEAR(fused[i], taped[i], 1e-4) << i;
+  }
+}
+
 // The full step: detection box → crop → landmarks in image pixels.
 TEST(FaceLandmark68Net, LandmarksInImageMatchFaceApi) {
   const json index = test::parity_index();
