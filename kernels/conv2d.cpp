@@ -465,10 +465,13 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const std::uint32_t wg = group_lanes(blocks * c.n);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
+      // y by quads of pixels (the shader's STORE4): whole aligned quads in every row.
+      const bool store4 =
+          t.px % 4 == 0 && c.wout % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0;
       stream.dispatch(
           kDepthwise,
           {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(yt), texel(r)}, c,
-          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res, t.sh});
+          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res, t.sh, store4 ? 1u : 0u});
       return;
     }
   }

@@ -291,10 +291,12 @@ Var FaceLandmark68Net::forward(Tape& t, const Var& x112) const {
 std::array<float, FaceLandmark68Net::kOutputs> FaceLandmark68Net::relative_landmarks(
     Stream& stream, const Tensor& crop) const {
   Tape tape(stream, /*recording=*/false);
-  // ReLU maps NaN to 0, so the crop itself is checked: its sum is finite iff
-  // every pixel is (for pixel values in any sane range).
-  const Var total = sum_all(tape, Var(crop));
-  const Var raw = forward(tape, to_landmark_input(tape, Var(crop)));
+  // ReLU maps NaN to 0, so the network input is checked (as the detector
+  // does): its sum is finite iff every crop pixel the resize read is (for
+  // pixel values in any sane range); 112² values, not the whole crop.
+  const Var input = to_landmark_input(tape, Var(crop));
+  const Var total = sum_all(tape, input);
+  const Var raw = forward(tape, input);
   stream.run();
   if (!std::isfinite(total.value().download()[0])) {
     throw InvalidArgument("FaceLandmark68Net", "the face crop holds NaN or infinite pixels",

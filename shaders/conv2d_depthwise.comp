@@ -22,6 +22,9 @@ layout(constant_id = 6) const uint XRELU = 0u;
 // Zero columns before the left padding (kernels/conv2d.cpp, BlockedTile::sh):
 // a block's taps start SH columns into its 4-aligned row segment.
 layout(constant_id = 9) const uint SH = 0u;
+// y stored by quads of pixels, one vec4 each (llvmpipe runs stores lane by
+// lane): PX and wout multiples of 4 and y's rows 4-aligned (yw, yleft).
+layout(constant_id = 10) const uint STORE4 = 0u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u + SH;
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
 const uint NR = RY + KH - 1u;       // input rows of one block when RY > 1
@@ -30,6 +33,7 @@ layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp],
 layout(binding = 1) uniform samplerBuffer weight;  // [cout, 1, kh, kw]
 layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
+layout(std430, binding = 3) writeonly buffer Y4 { vec4 y4[]; };  // the same buffer (STORE4)
 
 vec4 load(int i) {
   const vec4 v = texelFetch(xp, i);
@@ -92,6 +96,19 @@ void main() {
     const uint oy = oy0 + q;
     if (oy >= pc.hout || oy + pc.ytop >= pc.yh) continue;
     const uint orow = (plane + oy + pc.ytop) * pc.yw + pc.yleft;
+    if (STORE4 != 0u) {
+      [[unroll]] for (uint p4 = 0u; p4 < PX; p4 += 4u) {
+        const uint ox = ox0 + p4;
+        if (ox < pc.wout && ox + pc.yleft < pc.yw) {
+          vec4 v;
+          [[unroll]] for (uint k = 0u; k < 4u; ++k) {
+            v[k] = conv_act(acc[q * PX + p4 + k] + b + conv_residual(n, co, oy * pc.wout + ox + k));
+          }
+          y4[(orow + ox) / 4u] = v;
+        }
+      }
+      continue;
+    }
     [[unroll]] for (uint p = 0u; p < PX; ++p) {
       const uint ox = ox0 + p;
       if (ox < pc.wout && ox + pc.yleft < pc.yw) {
