@@ -424,17 +424,18 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       g.z = c.n;
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
       // y by quads of pixels (the shader's STORE4): plain, or padded with aligned rows.
-      const bool store4 = vec4 && (y_padded == nullptr ||
-                                   (c.w % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0));
+      const bool store4 =
+          vec4 && (y_padded == nullptr || (c.w % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0));
       // The residual by quads too (RES4): plain, or padded with aligned rows.
-      const bool res4 = store4 && (c.has_res == 1 || (c.has_res == 2 && c.w % 4 == 0 &&
-                                                       c.wp % 4 == 0 && c.pl % 4 == 0));
-      stream.dispatch(kPointwise,
-                      {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
-                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt),
-                       texel(r, res4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT)},
-                      c, g,
-                      {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, res4 ? 1u : 0u, 0, 0, 0, 0, c.has_res});
+      const bool res4 =
+          store4 &&
+          (c.has_res == 1 || (c.has_res == 2 && c.w % 4 == 0 && c.wp % 4 == 0 && c.pl % 4 == 0));
+      stream.dispatch(
+          kPointwise,
+          {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
+           texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt),
+           texel(r, res4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT)},
+          c, g, {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, res4 ? 1u : 0u, 0, 0, 0, 0, c.has_res});
       return;
     }
     case Conv2dAlgo::blocked: {
@@ -466,8 +467,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       // y by quads of pixels (the shader's STORE4): whole aligned quads in every row.
-      const bool store4 =
-          t.px % 4 == 0 && c.wout % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0;
+      const bool store4 = t.px % 4 == 0 && c.wout % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0;
       stream.dispatch(
           kDepthwise,
           {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(yt), texel(r)}, c,

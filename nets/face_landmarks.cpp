@@ -68,7 +68,7 @@ Var to_landmark_input(Tape& t, const Var& crop) {
                           k::ResizeMode::bilinear_legacy, y);
     return Var(y);
   }
-  const Var square = h != w ? pad(t, crop, p, 0.f) : crop;
+  Var square = h != w ? pad(t, crop, p, 0.f) : crop;
   if (side == kLandmarkInputSize) return square;
   return resize(t, square, k::ResizeMode::bilinear_legacy, kLandmarkInputSize, kLandmarkInputSize);
 }

@@ -97,8 +97,8 @@ TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
   for (const auto& [k, canvas_at] : pads) {
     const auto [ch, cw, top, left] = canvas_at;
     for (ResizeMode m : kModes) {
-      SCOPED_TRACE(str(k, m) + " canvas " + std::to_string(ch) + "x" + std::to_string(cw) +
-                   " at " + std::to_string(top) + "," + std::to_string(left) +
+      SCOPED_TRACE(str(k, m) + " canvas " + std::to_string(ch) + "x" + std::to_string(cw) + " at " +
+                   std::to_string(top) + "," + std::to_string(left) +
                    " seed=" + std::to_string(seed));
       const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
       const auto xv = test::random_floats(std::size_t(xs.numel()), seed);

@@ -170,8 +170,8 @@ TEST(FaceLandmark68Net, LandmarkInputWithoutGradientsMatchesPadThenResize) {
       {{255, 312}, {312, 255}, {60, 90}, {97, 41}, {112, 80}}};
   for (const auto& [h, w] : sizes) {
     SCOPED_TRACE(std::to_string(h) + "×" + std::to_string(w));
-    const auto values = test::random_floats(std::size_t(2 * 3 * h * w), std::uint32_t(h * w), 0.f,
-                                            255.f);
+    const auto values =
+        test::random_floats(std::size_t(2 * 3 * h * w), std::uint32_t(h * w), 0.f, 255.f);
     const Tensor crops = Tensor::from(test::device(), Shape{2, 3, h, w}, values);
     const auto run = [&](bool with_grad) {
       Stream stream(test::device());
