@@ -1,7 +1,10 @@
+#include <vkjr2/kernels/resize.hpp>
 #include <vkjr2/nets/face_common.hpp>
+#include <vkjr2/nets/ops.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
 
+#include <algorithm>
 #include <cstdlib>
 #include <string>
 
@@ -159,6 +162,31 @@ void WeightReader::finish() const {
   for (const auto& [name, tensor] : weights_.entries()) {
     if (used_.count(name) == 0) fail(name, "is not part of " + model_);
   }
+}
+
+Var pad_to_square_and_resize(Tape& t, const Var& image, std::int64_t size) {
+  const std::int64_t h = image.shape()[2], w = image.shape()[3], side = std::max(h, w);
+  const std::int64_t diff = std::abs(h - w);
+  const auto after = std::int32_t(js_round_half(diff));
+  const auto before = std::int32_t(diff - after);
+  kernels::Pad2d p;
+  if (h > w) {
+    p.left = before;
+    p.right = after;
+  } else {
+    p.top = before;
+    p.bottom = after;
+  }
+  const auto legacy = kernels::ResizeMode::bilinear_legacy;
+  if (side != size && !t.needs_grad({&image})) {
+    Tensor y = Tensor::empty(image.value().device(), Shape{image.shape()[0], 3, size, size});
+    kernels::resize_zero_padded(t.stream(), image.value(),
+                                kernels::ResizeCanvas{side, side, p.top, p.left}, legacy, y);
+    return Var(y);
+  }
+  Var square = h != w ? pad(t, image, p, 0.f) : image;
+  if (side == size) return square;
+  return resize(t, square, legacy, size, size);
 }
 
 }  // namespace vkjr2::nets

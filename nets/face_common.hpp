@@ -2,6 +2,7 @@
 // location, images to device tensors).
 #pragma once
 
+#include <vkjr2/nets/autograd.hpp>
 #include <vkjr2/nets/host_tensor.hpp>
 #include <vkjr2/runtime/tensor.hpp>
 
@@ -57,5 +58,12 @@ class WeightReader {
 // JS Math.round of diff/2 for the non-negative differences padToSquare
 // splits: ties go up (the larger half is padded after the image).
 inline std::int64_t js_round_half(std::int64_t diff) { return (diff + 1) / 2; }
+
+// face-api's padToSquare(image, isCenterImage = true) (zeros, the larger half
+// after the image), then, unless the side already is `size`, resizeBilinear
+// (legacy) to size × size, for an NCHW batch. When nothing needs a gradient,
+// one pass that never builds the square (kernels::resize_zero_padded); on a
+// tape recording gradients for `image`, pad + resize.
+Var pad_to_square_and_resize(Tape& t, const Var& image, std::int64_t size);
 
 }  // namespace vkjr2::nets

@@ -1,4 +1,3 @@
-#include <vkjr2/kernels/resize.hpp>
 #include <vkjr2/nets/face_landmarks.hpp>
 #include <vkjr2/nets/separable_conv.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
@@ -47,30 +46,7 @@ Var to_landmark_input(Tape& t, const Var& crop) {
         "crop has shape " + shape_of(crop) + ", expected a non-empty RGB image batch [N, 3, H, W]",
         "pass face crops as NCHW (extract_face gives [N, 3, h, w])");
   }
-  const std::int64_t h = crop.shape()[2], w = crop.shape()[3], side = std::max(h, w);
-  // padToSquare(img, isCenterImage = true)
-  const std::int64_t diff = std::abs(h - w);
-  const auto after = std::int32_t(js_round_half(diff));
-  const auto before = std::int32_t(diff - after);
-  k::Pad2d p;
-  if (h > w) {
-    p.left = before;
-    p.right = after;
-  } else {
-    p.top = before;
-    p.bottom = after;
-  }
-  if (side != kLandmarkInputSize && !t.needs_grad({&crop})) {
-    // Inference: pad and resize in one pass (the square is never built).
-    Tensor y = Tensor::empty(crop.value().device(),
-                             Shape{crop.shape()[0], 3, kLandmarkInputSize, kLandmarkInputSize});
-    k::resize_zero_padded(t.stream(), crop.value(), k::ResizeCanvas{side, side, p.top, p.left},
-                          k::ResizeMode::bilinear_legacy, y);
-    return Var(y);
-  }
-  Var square = h != w ? pad(t, crop, p, 0.f) : crop;
-  if (side == kLandmarkInputSize) return square;
-  return resize(t, square, k::ResizeMode::bilinear_legacy, kLandmarkInputSize, kLandmarkInputSize);
+  return pad_to_square_and_resize(t, crop, kLandmarkInputSize);
 }
 
 std::array<float, 2 * kLandmarkCount> landmarks_relative_to_crop(const float* raw, double crop_w,

@@ -128,26 +128,7 @@ Var extract_face(Tape& t, const Var& image, const FaceBox& box) {
 
 Var to_recognition_input(Tape& t, const Var& chip) {
   require_image(chip, "to_recognition_input", "chip");
-  const std::int64_t h = chip.shape()[2], w = chip.shape()[3];
-  Var square = chip;
-  if (h != w) {
-    const std::int64_t diff = std::abs(h - w);
-    const auto after = std::int32_t(js_round_half(diff));
-    const auto before = std::int32_t(diff - after);
-    k::Pad2d p;
-    if (h > w) {
-      p.left = before;
-      p.right = after;
-    } else {
-      p.top = before;
-      p.bottom = after;
-    }
-    square = pad(t, chip, p, 0.f);
-  }
-  const std::int64_t side = std::max(h, w);
-  if (side == kRecognitionInputSize) return square;
-  return resize(t, square, k::ResizeMode::bilinear_legacy, kRecognitionInputSize,
-                kRecognitionInputSize);
+  return pad_to_square_and_resize(t, chip, kRecognitionInputSize);
 }
 
 Tensor to_recognition_input(Stream& stream, const Tensor& chip) {
