@@ -403,6 +403,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
     case Conv2dAlgo::auto_select:
     case Conv2dAlgo::direct: {
       const std::uint64_t n = std::uint64_t(c.n) * c.cout * c.hout * c.wout;
+      // Specialization constants are positional: ids 0..7 are unused here, 8 is HAS_RES.
       stream.dispatch(kDirect, {texel(x), texel(weight), texel(b), out(y), texel(r)}, c,
                       groups_1d(div_up(n, 256), info), {0, 0, 0, 0, 0, 0, 0, 0, c.has_res});
       return;

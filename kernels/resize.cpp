@@ -56,7 +56,8 @@ void dispatch_resize(Stream& stream, const Tensor& src, const Tensor& dst, const
                         static_cast<std::int32_t>(src_at[3])};
   const std::uint64_t items = std::uint64_t(w[0] * w[1] * w[2]) * div_up(w[3], 4);
   stream.dispatch(k, {texel(src), vkjr2::out(dst)}, push,
-                  groups_1d(div_up(items, 256), stream.device().info()), {backward ? 1u : 0u});
+                  groups_1d(div_up(items, 256), stream.device().info()),
+                  {backward ? 1u : 0u, mode == ResizeMode::nearest ? 1u : 0u});
 }
 
 void require_batch_match(const Tensor& a, const Tensor& b, const char* op, const char* a_name,

@@ -179,7 +179,8 @@ Var pad_to_square_and_resize(Tape& t, const Var& image, std::int64_t size) {
   }
   const auto legacy = kernels::ResizeMode::bilinear_legacy;
   if (side != size && !t.needs_grad({&image})) {
-    Tensor y = Tensor::empty(image.value().device(), Shape{image.shape()[0], 3, size, size});
+    Tensor y = Tensor::empty(image.value().device(),
+                             Shape{image.shape()[0], image.shape()[1], size, size});
     kernels::resize_zero_padded(t.stream(), image.value(),
                                 kernels::ResizeCanvas{side, side, p.top, p.left}, legacy, y);
     return Var(y);

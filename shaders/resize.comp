@@ -11,6 +11,10 @@
 #include "common.glsl"
 layout(local_size_x = 256) in;
 layout(constant_id = 0) const uint BACKWARD = 0u;
+// pc.mode == 3 (nearest) as a specialization constant for the forward's taps:
+// llvmpipe runs both sides of a branch on a push constant, so a runtime test
+// would fetch the one nearest tap and the four bilinear ones for every output.
+layout(constant_id = 1) const uint NEAREST = 0u;
 layout(binding = 0) uniform samplerBuffer src;  // x (forward) or dy (backward)
 layout(std430, binding = 1) writeonly buffer Dst { float dst[]; };  // y or dx
 layout(push_constant) uniform Push {
@@ -89,7 +93,7 @@ void forward_pass(uint item) {
     int x0, x1;
     float lx;
     taps(ox, pc.in_w, pc.scale_w, x0, x1, lx);
-    if (pc.mode == 3u) {  // nearest: one tap
+    if (NEAREST != 0u) {  // one tap
       dst[row * uint(pc.out_w) + uint(ox)] = canvas_at(base, y0, x0);
       continue;
     }

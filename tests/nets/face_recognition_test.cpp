@@ -284,6 +284,11 @@ TEST(FaceRecognitionNet, PadsChipsToSquareLikeFaceApi) {
       }
     }
   }
+  // Any channel count and batch go through (resized too, not only padded).
+  const Tensor gray = to_recognition_input(
+      stream, Tensor::from(test::device(), Shape{2, 1, 60, 90}, std::vector<float>(10800, 7.f)));
+  stream.run();
+  EXPECT_EQ(gray.shape(), (Shape{2, 1, 150, 150}));
 }
 
 TEST(FaceRecognitionNet, PixelGradientMatchesFiniteDifferences) {
