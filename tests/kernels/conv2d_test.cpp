@@ -155,6 +155,18 @@ std::vector<Case> edge_cases() {
   cases.push_back(c);
   c.d = {2, 6, 6, 6, 12, 1, 1};  // pointwise, vec4 stores of quads that cross a row end
   cases.push_back(c);
+  // Pointwise, 16 output channels per invocation (Cout % 16 == 0) and the
+  // channel loop unrolled by 4, 2 or not at all (Cin % 4, % 2).
+  c.d = {1, 12, 7, 7, 32, 1, 1};  // scalar reads (49 pixels), unrolled by 4
+  cases.push_back(c);
+  c.d = {2, 6, 6, 6, 16, 1, 1};  // quads across a row end, unrolled by 2
+  cases.push_back(c);
+  c.d = {1, 20, 8, 10, 48, 1, 1};  // vec4 reads, three 16-channel blocks
+  c.p.activation = Activation::relu;
+  cases.push_back(c);
+  c.d = {2, 5, 4, 4, 16, 1, 1};  // not unrolled, one 16-channel block
+  c.p.activation = Activation::leaky_relu;
+  cases.push_back(c);
   return cases;
 }
 
@@ -392,7 +404,7 @@ TEST(Conv2d, SeparableChainThroughPaddedTensors) {
                              pick({3, 8}),
                              pick({1, 5, 8, 14, 19}),
                              pick({2, 7, 9, 16, 23}),
-                             pick({5, 8, 16}),
+                             pick({5, 8, 16, 32}),
                              1,
                              1};
     SCOPED_TRACE("trial " + std::to_string(trial) + ": x [" + std::to_string(d0.n) + "," +
