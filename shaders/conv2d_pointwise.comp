@@ -54,7 +54,9 @@ void accumulate(int xbase, vec4 w[NB]) {
   } else {
     [[unroll]] for (uint p = 0u; p < PX; ++p) {
       const float v = texelFetch(x, xbase + pix[p]).r;
-      [[unroll]] for (uint b = 0u; b < NB; ++b) acc[b * PX + p] = fma(vec4(v), w[b], acc[b * PX + p]);
+      [[unroll]] for (uint b = 0u; b < NB; ++b) {
+        acc[b * PX + p] = fma(vec4(v), w[b], acc[b * PX + p]);
+      }
     }
   }
 }
