@@ -277,10 +277,11 @@ std::uint32_t group_lanes(std::uint64_t invocations) {
 // The pointwise kernel's tile: 8 pixels × co output channels per
 // invocation, the input-channel loop unrolled by `unroll`. Measured on
 // lavapipe (landmark-net shapes 32→32 at 56² to 256→256 at 7², process CPU
-// time, 2026-12-03): unrolling by 4 cuts 10–20 % (llvmpipe keeps a loop's
-// carried values in memory, masked, so each iteration stores every
-// accumulator; unrolled steps in between stay in registers); 16 channels
-// (each input fetch feeds twice the FMAs) another 5–10 %.
+// time, 2026-12-03): unrolling by 4 cuts 14–20 % (our reading, not
+// measured directly: llvmpipe updates a loop's carried accumulators under
+// the loop's lane mask once per iteration, steps unrolled inside one
+// iteration skip that); 16 channels (each input fetch feeds twice the FMAs)
+// another 2–9 %.
 struct PointwiseTile {
   std::uint32_t co = kCoBlock, unroll = 1;
 };
@@ -289,7 +290,7 @@ PointwiseTile pointwise_tile(const ConvPush& c) {
   PointwiseTile t;
   // 16 channels read two 8-channel blocks of the packed weights: only when
   // both exist (cout a multiple of 16).
-  if (c.cout % 16 == 0) t.co = 16;
+  if (c.cout % (2 * kCoBlock) == 0) t.co = 2 * kCoBlock;
   for (std::uint32_t u : {4u, 2u}) {
     if (c.cin % u == 0) {
       t.unroll = u;
