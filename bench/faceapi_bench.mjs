@@ -6,17 +6,25 @@
 //
 //   node bench/faceapi_bench.mjs [--json out.json] [--runs 10] [--warmup 2]
 //        [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR]
+//        [--serve]
+//
+// --serve: for bench/nets_bench, which interleaves these runs with its own so
+// that both see the same machine load. After the warm-ups it prints one JSON
+// line {"ready": true, "peer", "backend", ...}, then answers each line NAME
+// read from stdin (a benchmark name below) with one timed run,
+// {"name": NAME, "ms": T}, or {"error": "..."}; "quit" or end of input ends it.
 //
 // node_modules are found as tests/parity/face_api_reference.mjs finds them
 // (see tests/parity/README.md): normally the install scripts/setup made in
 // $VKJR2_CACHE_DIR/node-parity-<lock hash>/, nothing to pass.
 import fs from 'node:fs';
+import readline from 'node:readline';
 import os from 'node:os';
 import path from 'node:path';
 import { decodeJpeg, loadFaceApi } from '../tests/parity/face_api_reference.mjs';
 
 const USAGE = `usage: node bench/faceapi_bench.mjs [--json out.json] [--runs 10] [--warmup 2]
-       [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR]`;
+       [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR] [--serve]`;
 
 function parseArgs(argv) {
   const args = { runs: 10, warmup: 2, backend: 'wasm' };
@@ -39,6 +47,7 @@ function parseArgs(argv) {
     else if (a === '--node-modules') args.nodeModules = val();
     else if (a === '--models') args.models = val();
     else if (a === '--images') args.images = val();
+    else if (a === '--serve') args.serve = true;
     else if (a === '-h' || a === '--help') args.help = true;
     else throw new Error(`unknown argument ${a}\n${USAGE}`);
   }
@@ -57,6 +66,26 @@ async function time(fn, runs, warmup) {
   const mid = Math.floor(ms.length / 2);
   const median = ms.length % 2 ? ms[mid] : (ms[mid - 1] + ms[mid]) / 2;
   return { median, min: ms[0], max: ms[ms.length - 1] };
+}
+
+// --serve: one timed run per request line (see the header).
+async function serve(benches, warmup, about) {
+  for (const b of benches) for (let i = 0; i < warmup; i++) await b.fn();
+  console.log(JSON.stringify({ ready: true, ...about, benchmarks: benches.map((b) => b.name) }));
+  const byName = new Map(benches.map((b) => [b.name, b]));
+  for await (const line of readline.createInterface({ input: process.stdin, terminal: false })) {
+    const name = line.trim();
+    if (name === 'quit') break;
+    if (name === '') continue;
+    const b = byName.get(name);
+    if (!b) {
+      console.log(JSON.stringify({ error: `unknown benchmark ${name}` }));
+      continue;
+    }
+    const t0 = performance.now();
+    await b.fn();
+    console.log(JSON.stringify({ name, ms: performance.now() - t0 }));
+  }
 }
 
 function writeJsonAtomic(file, value) {
@@ -106,6 +135,19 @@ async function main() {
 
   const peer = `face-api ${info.versions.face_api} / TF.js ${info.versions.tfjs} ${info.backend}`
     + (info.backend === 'wasm' ? ` (SIMD ${info.wasm_simd ? 'on' : 'off'}, ${info.wasm_threads} thread)` : ' (pure JS)');
+  const about = {
+    peer,
+    backend: info.backend,
+    wasm_simd: info.wasm_simd ?? null,
+    wasm_threads: info.wasm_threads ?? null,
+    node: process.version,
+    machine: `${os.cpus()[0]?.model ?? 'unknown CPU'} (${os.cpus().length} logical CPUs)`,
+  };
+  if (args.serve) {
+    await serve(benches, args.warmup, about);
+    tf.dispose([image, lmCrop, chip, chip150]);
+    return;
+  }
   console.log(`${peer}, median of ${args.runs} runs after ${args.warmup} warm-ups`);
   console.log(`${'benchmark'.padEnd(28)} ${'median ms'.padStart(10)} ${'min ms'.padStart(9)} ${'max ms'.padStart(9)} `
     + `${'faces/s'.padStart(8)}  what`);
@@ -128,15 +170,7 @@ async function main() {
   tf.dispose([image, lmCrop, chip, chip150]);
 
   if (args.json) {
-    writeJsonAtomic(args.json, {
-      peer,
-      backend: info.backend,
-      wasm_simd: info.wasm_simd ?? null,
-      wasm_threads: info.wasm_threads ?? null,
-      node: process.version,
-      machine: `${os.cpus()[0]?.model ?? 'unknown CPU'} (${os.cpus().length} logical CPUs)`,
-      results,
-    });
+    writeJsonAtomic(args.json, { ...about, results });
     console.log(`wrote ${args.json}`);
   }
 }

@@ -22,13 +22,17 @@
 
 #include <algorithm>
 #include <array>
+#include <chrono>
 #include <cmath>
+#include <csignal>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <functional>
 #include <map>
 #include <optional>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -124,27 +128,42 @@ std::vector<float> mat_values(const cv::Mat& m) {
   return {c.ptr<float>(), c.ptr<float>() + c.total()};
 }
 
-// Median seconds of a and b, their runs interleaved (a, b, a, b, …) so that
-// both see the same load on this shared machine.
-std::pair<double, double> median_interleaved(const std::function<void()>& a,
-                                             const std::function<void()>& b, int reps, int warmup) {
-  for (int i = 0; i < warmup; ++i) {
-    a();
-    b();
-  }
-  std::vector<double> ta, tb;
-  const auto time = [](const std::function<void()>& fn) {
+// One timed run: the seconds it took.
+using Timed = std::function<double()>;
+
+Timed wall(std::function<void()> fn) {
+  return [fn = std::move(fn)] {
     const auto start = std::chrono::steady_clock::now();
     fn();
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   };
-  for (int i = 0; i < reps; ++i) {
-    ta.push_back(time(a));
-    tb.push_back(time(b));
+}
+
+// Seconds of each run of each function, their runs interleaved (f0, f1, …,
+// f0, f1, …) so that all see the same load on this shared machine; in run order.
+std::vector<std::vector<double>> time_interleaved(const std::vector<Timed>& fns, int reps,
+                                                  int warmup) {
+  for (int i = 0; i < warmup; ++i) {
+    for (const Timed& f : fns) f();
   }
-  std::sort(ta.begin(), ta.end());
-  std::sort(tb.begin(), tb.end());
-  return {ta[ta.size() / 2], tb[tb.size() / 2]};
+  std::vector<std::vector<double>> t(fns.size());
+  for (int i = 0; i < reps; ++i) {
+    for (std::size_t k = 0; k < fns.size(); ++k) t[k].push_back(fns[k]());
+  }
+  return t;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t m = v.size() / 2;
+  return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
+}
+
+// Median seconds of a and b, their runs interleaved.
+std::pair<double, double> median_interleaved(const std::function<void()>& a,
+                                             const std::function<void()>& b, int reps, int warmup) {
+  const auto t = time_interleaved({wall(a), wall(b)}, reps, warmup);
+  return {median(t[0]), median(t[1])};
 }
 
 // ---- the same networks through the cv::dnn API ------------------------------------
@@ -459,71 +478,142 @@ std::vector<float> dnn_forward(cv::dnn::Net& net, const cv::Mat& blob) {
 
 // ---- the TF.js peer ------------------------------------------------------------------
 
-struct TfjsPeer {
-  bool available = false;
-  std::string reason;  // why not, when unavailable
-  std::string peer;    // e.g. "face-api 1.7.15 / TF.js 4.22.0 wasm (SIMD on, 1 thread)"
-  std::map<std::string, double> ms;
-  std::string raw_json;  // what faceapi_bench.mjs wrote
-};
-
-TfjsPeer run_tfjs(const Options& o) {
-  TfjsPeer t;
-  if (!o.tfjs) {
-    t.reason = "skipped (--no-tfjs)";
-    return t;
-  }
-  if (std::system("command -v node > /dev/null 2>&1") != 0) {
-    t.reason = "node is not installed (apt-get install nodejs, then scripts/setup)";
-    return t;
-  }
-  if (!fs::exists(o.faceapi_script)) {
-    t.reason = o.faceapi_script + " not found (pass --faceapi-script PATH)";
-    return t;
-  }
-  const fs::path json =
-      fs::temp_directory_path() / ("nets_bench_faceapi_" + std::to_string(::getpid()) + ".json");
-  const std::string cmd = "node '" + o.faceapi_script + "' --json '" + json.string() + "' --runs " +
-                          std::to_string(o.runs) + " --warmup " + std::to_string(o.warmup) +
-                          " 2>&1";
-  std::fprintf(stderr, "nets_bench: %s\n", cmd.c_str());
-  std::string output;
-  FILE* p = ::popen(cmd.c_str(), "r");
-  if (p == nullptr) {
-    t.reason = "cannot start node";
-    return t;
-  }
-  char buf[512];
-  while (std::fgets(buf, sizeof buf, p) != nullptr) {
-    output += buf;
-    std::fprintf(stderr, "  | %s", buf);
-  }
-  const int rc = ::pclose(p);
-  if (rc != 0 || !fs::exists(json)) {
-    // The script's last line says why (missing packages: run scripts/setup).
-    std::string last = output;
-    while (!last.empty() && last.back() == '\n') last.pop_back();
-    last = last.substr(last.rfind('\n') == std::string::npos ? 0 : last.rfind('\n') + 1);
-    const int code = WIFEXITED(rc) ? WEXITSTATUS(rc) : rc;
-    t.reason = "faceapi_bench.mjs failed (exit " + std::to_string(code) + "): " + last;
-    fs::remove(json);
-    return t;
-  }
-  try {
-    std::ifstream f(json);
-    const nlohmann::json raw = nlohmann::json::parse(f);
-    t.raw_json = raw.dump();
-    t.peer = raw.at("peer").get<std::string>();
-    for (const auto& r : raw.at("results")) {
-      t.ms[r.at("name").get<std::string>()] = r.at("value").get<double>();
+// face-api on TF.js in a node process (faceapi_bench.mjs --serve) that times
+// one run per request, so that its runs interleave with ours and both see
+// the same load on this shared machine (its speed drifts up to 2× within
+// minutes). Unavailable (reason() says why) when node, the script or its
+// packages are missing, or the process dies.
+class TfjsServer {
+ public:
+  explicit TfjsServer(const Options& o) {
+    if (!o.tfjs) {
+      reason_ = "skipped (--no-tfjs)";
+      return;
     }
-    t.available = true;
-  } catch (const std::exception& e) {
-    t.reason = std::string("cannot parse the JSON faceapi_bench.mjs wrote: ") + e.what();
+    if (std::system("command -v node > /dev/null 2>&1") != 0) {
+      reason_ = "node is not installed (apt-get install nodejs, then scripts/setup)";
+      return;
+    }
+    if (!fs::exists(o.faceapi_script)) {
+      reason_ = o.faceapi_script + " not found (pass --faceapi-script PATH)";
+      return;
+    }
+    std::signal(SIGPIPE, SIG_IGN);  // a dead server is an error below, not a signal
+    int to_child[2], from_child[2];
+    if (::pipe(to_child) != 0 || ::pipe(from_child) != 0) {
+      reason_ = "cannot make pipes to node";
+      return;
+    }
+    const std::string warmup = std::to_string(o.warmup);
+    std::fprintf(stderr, "nets_bench: node %s --serve --warmup %s\n", o.faceapi_script.c_str(),
+                 warmup.c_str());
+    std::fflush(stdout);  // the child must not inherit unwritten output
+    std::fflush(stderr);
+    pid_ = ::fork();
+    if (pid_ == 0) {
+      ::dup2(to_child[0], 0);
+      ::dup2(from_child[1], 1);
+      ::dup2(from_child[1], 2);  // its errors come back as lines too
+      ::close(to_child[1]);
+      ::close(from_child[0]);
+      ::execlp("node", "node", o.faceapi_script.c_str(), "--serve", "--warmup", warmup.c_str(),
+               static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+    ::close(to_child[0]);
+    ::close(from_child[1]);
+    if (pid_ < 0) {
+      ::close(to_child[1]);
+      ::close(from_child[0]);
+      reason_ = "cannot start node";
+      return;
+    }
+    to_ = ::fdopen(to_child[1], "w");
+    from_ = ::fdopen(from_child[0], "r");
+    try {
+      const nlohmann::json ready = read_reply("ready");
+      about_ = ready;
+      about_.erase("ready");
+      peer_ = ready.at("peer").get<std::string>();
+    } catch (const std::exception& e) {
+      reason_ = std::string(e.what()) + " (scripts/setup installs node and face-api's packages)";
+      stop();
+    }
   }
-  fs::remove(json);
-  return t;
-}
+  ~TfjsServer() { stop(); }
+  TfjsServer(const TfjsServer&) = delete;
+  TfjsServer& operator=(const TfjsServer&) = delete;
+
+  bool available() const { return !peer_.empty(); }
+  const std::string& reason() const { return reason_; }
+  const std::string& peer() const { return peer_; }  // "face-api 1.7.15 / TF.js 4.22.0 wasm …"
+  const nlohmann::json& about() const { return about_; }  // backend, SIMD, threads, node, machine
+
+  // Seconds of one run of the script's benchmark `name`, as node timed it
+  // (the pipe's round trip is not counted).
+  double run(const std::string& name) {
+    if (!available()) throw InvalidArgument("nets_bench", "the TF.js peer is unavailable");
+    if (std::fprintf(to_, "%s\n", name.c_str()) < 0 || std::fflush(to_) != 0) {
+      throw InvalidArgument("nets_bench", "the TF.js peer (node) stopped reading requests");
+    }
+    try {
+      return read_reply("name").at("ms").get<double>() * 1e-3;
+    } catch (const std::exception& e) {
+      throw InvalidArgument("nets_bench", "the TF.js peer failed timing " + name + ": " + e.what(),
+                            "run node bench/faceapi_bench.mjs alone to see why, or pass --no-tfjs");
+    }
+  }
+
+ private:
+  // The next JSON reply holding `key`; other lines (node's own messages)
+  // are echoed. Throws (std::runtime_error) with the last line seen when
+  // the process ends, or with its error reply.
+  nlohmann::json read_reply(const char* key) {
+    std::string last;
+    char* line = nullptr;
+    std::size_t cap = 0;
+    ssize_t n = 0;
+    while ((n = ::getline(&line, &cap, from_)) > 0) {
+      std::string text(line, std::size_t(n));
+      while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
+      const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+      if (j.is_object() && j.contains(key)) {
+        std::free(line);
+        return j;
+      }
+      if (j.is_object() && j.contains("error")) {
+        std::free(line);
+        throw std::runtime_error("faceapi_bench.mjs: " + j.at("error").get<std::string>());
+      }
+      std::fprintf(stderr, "  | %s\n", text.c_str());
+      if (!text.empty()) last = text;
+    }
+    std::free(line);
+    throw std::runtime_error("faceapi_bench.mjs ended" + (last.empty() ? "" : ": " + last));
+  }
+
+  void stop() {
+    if (to_ != nullptr) {
+      std::fputs("quit\n", to_);
+      std::fclose(to_);
+      to_ = nullptr;
+    }
+    if (from_ != nullptr) {
+      std::fclose(from_);
+      from_ = nullptr;
+    }
+    if (pid_ > 0) {
+      ::waitpid(pid_, nullptr, 0);
+      pid_ = -1;
+    }
+  }
+
+  pid_t pid_ = -1;
+  FILE* to_ = nullptr;
+  FILE* from_ = nullptr;
+  std::string reason_, peer_;
+  nlohmann::json about_;
+};
 
 // ---- the benchmark -------------------------------------------------------------------
 
@@ -532,6 +622,8 @@ struct NetReport {
   double flops = 0;         // per face (per image for the detector)
   double opencv_flops = 0;  // cv::dnn::Net::getFLOPS, all layers (cross-check)
   double vk_ms = 0, cv_ms = 0;
+  double tf_ms = 0;                // 0: the TF.js peer is unavailable
+  std::vector<double> tf_over_vk;  // per interleaved run, TF.js time / vkjr2 time
   double vk_batch_fps = 0, cv_batch_fps = 0;
   double check_vk_vs_cv = 0;       // max abs diff, same input
   double check_vk_vs_faceapi = 0;  // max abs diff vs face-api's reference output
@@ -545,6 +637,21 @@ bench::Result ms_row(const std::string& name, double vk_ms, const std::string& p
   r.higher_is_better = false;
   if (flops > 0) r.fraction_of_device_peak = flops / (vk_ms * 1e-3) * 1e-9 / peak_gflops;
   return r;
+}
+
+// The single-face timing: vkjr2, OpenCV and, when it is available, the
+// TF.js peer's benchmark `tf_name`, runs interleaved.
+void time_single(NetReport& r, const std::function<void()>& vk, const std::function<void()>& cv,
+                 TfjsServer& tf, const std::string& tf_name, const Options& o) {
+  std::vector<Timed> fns = {wall(vk), wall(cv)};
+  if (tf.available()) fns.push_back([&] { return tf.run(tf_name); });
+  const auto t = time_interleaved(fns, o.runs, o.warmup);
+  r.vk_ms = median(t[0]) * 1e3;
+  r.cv_ms = median(t[1]) * 1e3;
+  if (t.size() > 2) {
+    r.tf_ms = median(t[2]) * 1e3;
+    for (std::size_t i = 0; i < t[0].size(); ++i) r.tf_over_vk.push_back(t[2][i] / t[0][i]);
+  }
 }
 
 std::vector<const HostTensor*> pick(const std::vector<HostTensor>& all) {
@@ -579,7 +686,7 @@ std::vector<float> vk_run(Stream& s, const std::function<nets::Var(nets::Tape&)>
 }
 
 NetReport bench_recognition(const Device& dev, const fs::path& dir, const nlohmann::json& index,
-                            const Options& o) {
+                            const Options& o, TfjsServer& tf) {
   NetReport r{"FaceRecognitionNet"};
   const nets::TfjsWeights w = nets::load_tfjs_weights(
       nets::face_api_manifest("face_recognition_model-weights_manifest.json"));
@@ -604,10 +711,9 @@ NetReport bench_recognition(const Device& dev, const fs::path& dir, const nlohma
   r.check_vk_vs_faceapi = max_abs_diff(vk, ref.get<std::vector<float>>());
 
   std::vector<float> sink;
-  const auto [tv, tc] = median_interleaved([&] { sink = vk_once(); },
-                                           [&] { sink = dnn_forward(dnn, bx); }, o.runs, o.warmup);
-  r.vk_ms = tv * 1e3;
-  r.cv_ms = tc * 1e3;
+  time_single(
+      r, [&] { sink = vk_once(); }, [&] { sink = dnn_forward(dnn, bx); }, tf,
+      "faceapi_recognition_150", o);
 
   const std::vector<HostTensor> faces = all_faces(dir, "_150.npy");
   const std::vector<float> xb = hwc_to_nchw(pick(faces));
@@ -631,7 +737,7 @@ NetReport bench_recognition(const Device& dev, const fs::path& dir, const nlohma
 }
 
 NetReport bench_landmarks(const Device& dev, const fs::path& dir, const nlohmann::json& index,
-                          const Options& o) {
+                          const Options& o, TfjsServer& tf) {
   NetReport r{"FaceLandmark68Net"};
   const nets::TfjsWeights w = nets::load_tfjs_weights(
       nets::face_api_manifest("face_landmark_68_model-weights_manifest.json"));
@@ -675,9 +781,7 @@ NetReport bench_landmarks(const Device& dev, const fs::path& dir, const nlohmann
     const auto rel = nets::landmarks_relative_to_crop(raw.ptr<float>(), cw, ch);
     sink.assign(rel.begin(), rel.end());
   };
-  const auto [tv, tc] = median_interleaved(vk_detect, cv_detect, o.runs, o.warmup);
-  r.vk_ms = tv * 1e3;
-  r.cv_ms = tc * 1e3;
+  time_single(r, vk_detect, cv_detect, tf, "faceapi_landmarks_112", o);
 
   const std::vector<HostTensor> faces = all_faces(dir, "_lm_112.npy");
   const std::vector<float> xb = hwc_to_nchw(pick(faces));
@@ -701,7 +805,7 @@ NetReport bench_landmarks(const Device& dev, const fs::path& dir, const nlohmann
 }
 
 NetReport bench_detector(const Device& dev, const fs::path& dir, const nlohmann::json& index,
-                         const Options& o) {
+                         const Options& o, TfjsServer& tf) {
   constexpr int kSize = 416, kCells = kSize / 32;
   NetReport r{"TinyFaceDetector"};
   const nets::TfjsWeights w = nets::load_tfjs_weights(
@@ -751,9 +855,7 @@ NetReport bench_detector(const Device& dev, const fs::path& dir, const nlohmann:
     }
     cv_faces = nets::non_max_suppression(boxes, scores, nets::kTinyFaceIouThreshold).size();
   };
-  const auto [tv, tc] = median_interleaved(vk_detect, cv_detect, o.runs, o.warmup);
-  r.vk_ms = tv * 1e3;
-  r.cv_ms = tc * 1e3;
+  time_single(r, vk_detect, cv_detect, tf, "faceapi_tiny_detector_416", o);
   const std::size_t ref_faces = index.at("images").at(0).at("detections").size();
   r.note = "faces found in sample1: vkjr2 " + std::to_string(vk_faces) + ", OpenCV pipeline " +
            std::to_string(cv_faces) + ", face-api " + std::to_string(ref_faces);
@@ -818,11 +920,12 @@ void usage() {
       "                  [--profile]\n"
       "Times face-api's FaceRecognitionNet (150x150), FaceLandmark68Net (112x112) and\n"
       "TinyFaceDetector (416, sample1) on vkjr2's Vulkan device (VKJR2_DEVICE picks it)\n"
-      "against face-api on TF.js WASM (node bench/faceapi_bench.mjs, after scripts/setup)\n"
-      "and OpenCV DNN running the same networks with the same weights (built through the\n"
-      "cv::dnn API, checked against vkjr2's output first), all in one run. Median of N runs\n"
-      "(default 7, --quick 3) after 2 warm-ups (--quick 1); prints a table, writes JSON\n"
-      "(default nets_bench.json). --profile adds per-kernel GPU times of each net.\n"
+      "against face-api on TF.js WASM (node bench/faceapi_bench.mjs --serve, after\n"
+      "scripts/setup) and OpenCV DNN running the same networks with the same weights\n"
+      "(built through the cv::dnn API, checked against vkjr2's output first), all in one\n"
+      "run, the three's runs interleaved so that all see the same machine load. Median of\n"
+      "N runs (default 7, --quick 3) after 2 warm-ups (--quick 1); prints a table, writes\n"
+      "JSON (default nets_bench.json). --profile adds per-kernel GPU times of each net.\n"
       "Inputs: the face-api parity references ($VKJR2_PARITY_DIR, else\n"
       "${VKJR2_CACHE_DIR:-~/.cache/vkjr2}/parity).\n");
 }
@@ -874,9 +977,12 @@ int run(int argc, char** argv) {
   cv::setNumThreads(cv::getNumberOfCPUs());
   const int cv_threads = cv::getNumThreads();
 
-  // The TF.js peer first, alone (it and we would otherwise share the 2 cores).
-  std::fprintf(stderr, "nets_bench: face-api on TF.js...\n");
-  const TfjsPeer tfjs = run_tfjs(o);
+  // The TF.js peer: started (and warmed up) before anything else, then idle
+  // between the runs it is asked for (it and we never share the 2 cores).
+  std::fprintf(stderr, "nets_bench: starting face-api on TF.js...\n");
+  TfjsServer tfjs(o);
+  if (!tfjs.available())
+    std::fprintf(stderr, "nets_bench: no TF.js peer: %s\n", tfjs.reason().c_str());
 
   DeviceOptions options;
   options.validation = false;
@@ -886,28 +992,24 @@ int run(int argc, char** argv) {
 
   std::vector<NetReport> nets_done;
   std::fprintf(stderr, "nets_bench: recognition...\n");
-  nets_done.push_back(bench_recognition(dev, dir, index, o));
+  nets_done.push_back(bench_recognition(dev, dir, index, o, tfjs));
   std::fprintf(stderr, "nets_bench: landmarks...\n");
-  nets_done.push_back(bench_landmarks(dev, dir, index, o));
+  nets_done.push_back(bench_landmarks(dev, dir, index, o, tfjs));
   std::fprintf(stderr, "nets_bench: detector...\n");
-  nets_done.push_back(bench_detector(dev, dir, index, o));
+  nets_done.push_back(bench_detector(dev, dir, index, o, tfjs));
   const std::string load_after = load_average();
 
   const std::string tf_peer =
-      tfjs.available ? "face-api TF.js WASM 1 thread" : "face-api TF.js (unavailable)";
+      tfjs.available() ? "face-api TF.js WASM 1 thread" : "face-api TF.js (unavailable)";
   const std::string cv_peer =
       "OpenCV " + std::string(CV_VERSION) + " DNN " + std::to_string(cv_threads) + " thr";
-  const std::array<const char*, 3> tf_names = {"faceapi_recognition_150", "faceapi_landmarks_112",
-                                               "faceapi_tiny_detector_416"};
   const std::array<const char*, 3> row_names = {"recognition 150x150, 1 face",
                                                 "landmarks 112x112, 1 face (+pad/resize)",
                                                 "tiny detector 416, sample1 (+decode)"};
   std::vector<bench::Result> results;
   for (std::size_t i = 0; i < nets_done.size(); ++i) {
     const NetReport& n = nets_done[i];
-    const auto it = tfjs.ms.find(tf_names[i]);
-    const double tf_ms = it == tfjs.ms.end() ? 0.0 : it->second;
-    results.push_back(ms_row(row_names[i], n.vk_ms, tf_peer, tf_ms, n.flops, peak));
+    results.push_back(ms_row(row_names[i], n.vk_ms, tf_peer, n.tf_ms, n.flops, peak));
     results.push_back(ms_row(row_names[i], n.vk_ms, cv_peer, n.cv_ms, n.flops, peak));
     if (n.vk_batch_fps > 0) {
       bench::Result br{std::string(i == 0 ? "recognition" : "landmarks") + " batch " +
@@ -924,20 +1026,19 @@ int run(int argc, char** argv) {
                      dev, results);
   std::printf("\nload average (1/5/15 min): %s before, %s after\n", load_before.c_str(),
               load_after.c_str());
-  std::printf("TF.js peer: %s\n",
-              tfjs.available ? tfjs.peer.c_str() : ("unavailable: " + tfjs.reason).c_str());
+  std::printf("TF.js peer: %s\n", tfjs.available()
+                                      ? (tfjs.peer() + ", its runs interleaved with ours").c_str()
+                                      : ("unavailable: " + tfjs.reason()).c_str());
   std::printf("OpenCV DNN: %d threads (cv::setNumThreads at the machine default), fusion on\n",
               cv_threads);
   std::printf("\n%-20s %9s %9s %9s %9s %10s %8s %9s %9s %9s\n", "net", "MFLOP", "vk ms", "faces/s",
               "GFLOP/s", "of peak", "TF.js ms", "OpenCV ms", "vk-cv", "vk-faceapi");
   for (std::size_t i = 0; i < nets_done.size(); ++i) {
     const NetReport& n = nets_done[i];
-    const auto it = tfjs.ms.find(tf_names[i]);
     const double gflops = n.flops / (n.vk_ms * 1e-3) * 1e-9;
     std::printf("%-20s %9.1f %9.2f %9.1f %9.2f %9.1f%% %8.2f %9.2f %9.2g %9.2g\n", n.net.c_str(),
-                n.flops * 1e-6, n.vk_ms, 1e3 / n.vk_ms, gflops, 100 * gflops / peak,
-                it == tfjs.ms.end() ? 0.0 : it->second, n.cv_ms, n.check_vk_vs_cv,
-                n.check_vk_vs_faceapi);
+                n.flops * 1e-6, n.vk_ms, 1e3 / n.vk_ms, gflops, 100 * gflops / peak, n.tf_ms,
+                n.cv_ms, n.check_vk_vs_cv, n.check_vk_vs_faceapi);
   }
   std::printf(
       "\nvk-cv: max |vkjr2 − OpenCV DNN| on the same input (descriptor / raw landmarks / raw\n"
@@ -959,6 +1060,11 @@ int run(int argc, char** argv) {
                   n.check_batch);
     }
     if (!n.note.empty()) std::printf("%s: %s\n", n.net.c_str(), n.note.c_str());
+    if (!n.tf_over_vk.empty()) {
+      const auto [lo, hi] = std::minmax_element(n.tf_over_vk.begin(), n.tf_over_vk.end());
+      std::printf("%s: TF.js / vkjr2 run by run: median %.3fx, range %.3f-%.3fx over %zu runs\n",
+                  n.net.c_str(), median(n.tf_over_vk), *lo, *hi, n.tf_over_vk.size());
+    }
   }
 
   nlohmann::json j = bench::to_json(dev, results);
@@ -968,8 +1074,12 @@ int run(int argc, char** argv) {
   j["runs"] = o.runs;
   j["warmup"] = o.warmup;
   j["opencv_threads"] = cv_threads;
-  j["tfjs"] = tfjs.available ? nlohmann::json::parse(tfjs.raw_json)
-                             : nlohmann::json{{"available", false}, {"reason", tfjs.reason}};
+  if (tfjs.available()) {
+    j["tfjs"] = tfjs.about();
+    j["tfjs"]["available"] = true;
+  } else {
+    j["tfjs"] = nlohmann::json{{"available", false}, {"reason", tfjs.reason()}};
+  }
   j["nets"] = nlohmann::json::array();
   for (const NetReport& n : nets_done) {
     j["nets"].push_back({{"net", n.net},
@@ -977,6 +1087,8 @@ int run(int argc, char** argv) {
                          {"opencv_getflops", n.opencv_flops},
                          {"vkjr2_ms", n.vk_ms},
                          {"opencv_ms", n.cv_ms},
+                         {"tfjs_ms", n.tf_ms},
+                         {"tfjs_over_vkjr2_per_run", n.tf_over_vk},
                          {"vkjr2_batch_faces_per_s", n.vk_batch_fps},
                          {"opencv_batch_faces_per_s", n.cv_batch_fps},
                          {"max_abs_diff_vkjr2_opencv", n.check_vk_vs_cv},
