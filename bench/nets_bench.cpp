@@ -576,7 +576,7 @@ class TfjsServer {
     while ((n = ::getline(&line, &cap, from_)) > 0) {
       std::string text(line, std::size_t(n));
       while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-      const nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
+      nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
       if (j.is_object() && j.contains(key)) {
         std::free(line);
         return j;
@@ -644,7 +644,7 @@ bench::Result ms_row(const std::string& name, double vk_ms, const std::string& p
 void time_single(NetReport& r, const std::function<void()>& vk, const std::function<void()>& cv,
                  TfjsServer& tf, const std::string& tf_name, const Options& o) {
   std::vector<Timed> fns = {wall(vk), wall(cv)};
-  if (tf.available()) fns.push_back([&] { return tf.run(tf_name); });
+  if (tf.available()) fns.emplace_back([&] { return tf.run(tf_name); });
   const auto t = time_interleaved(fns, o.runs, o.warmup);
   r.vk_ms = median(t[0]) * 1e3;
   r.cv_ms = median(t[1]) * 1e3;
