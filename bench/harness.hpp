@@ -33,15 +33,18 @@ struct Result {
   }
 };
 
+// Wall time of one call of `fn`, in seconds.
+inline double seconds_of(const std::function<void()>& fn) {
+  const auto start = std::chrono::steady_clock::now();
+  fn();
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
 // Median wall time of `fn` in seconds over `reps` runs after `warmup` runs.
 inline double median_seconds(const std::function<void()>& fn, int reps, int warmup = 1) {
   for (int i = 0; i < warmup; ++i) fn();
   std::vector<double> t;
-  for (int i = 0; i < reps; ++i) {
-    const auto start = std::chrono::steady_clock::now();
-    fn();
-    t.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
-  }
+  for (int i = 0; i < reps; ++i) t.push_back(seconds_of(fn));
   std::sort(t.begin(), t.end());
   return t[t.size() / 2];
 }

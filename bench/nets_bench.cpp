@@ -22,7 +22,6 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
 #include <cmath>
 #include <csignal>
 #include <cstdio>
@@ -30,8 +29,6 @@
 #include <filesystem>
 #include <fstream>
 #include <functional>
-#include <map>
-#include <optional>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -132,11 +129,7 @@ std::vector<float> mat_values(const cv::Mat& m) {
 using Timed = std::function<double()>;
 
 Timed wall(std::function<void()> fn) {
-  return [fn = std::move(fn)] {
-    const auto start = std::chrono::steady_clock::now();
-    fn();
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  };
+  return [fn = std::move(fn)] { return bench::seconds_of(fn); };
 }
 
 // Seconds of each run of each function, their runs interleaved (f0, f1, …,
@@ -500,13 +493,18 @@ class TfjsServer {
     }
     std::signal(SIGPIPE, SIG_IGN);  // a dead server is an error below, not a signal
     int to_child[2], from_child[2];
-    if (::pipe(to_child) != 0 || ::pipe(from_child) != 0) {
+    if (::pipe(to_child) != 0) {
       reason_ = "cannot make pipes to node";
       return;
     }
-    const std::string warmup = std::to_string(o.warmup);
-    std::fprintf(stderr, "nets_bench: node %s --serve --warmup %s\n", o.faceapi_script.c_str(),
-                 warmup.c_str());
+    if (::pipe(from_child) != 0) {
+      ::close(to_child[0]);
+      ::close(to_child[1]);
+      reason_ = "cannot make pipes to node";
+      return;
+    }
+    // No warm-ups at start: time_interleaved warms every peer up, this one too.
+    std::fprintf(stderr, "nets_bench: node %s --serve --warmup 0\n", o.faceapi_script.c_str());
     std::fflush(stdout);  // the child must not inherit unwritten output
     std::fflush(stderr);
     pid_ = ::fork();
@@ -516,7 +514,7 @@ class TfjsServer {
       ::dup2(from_child[1], 2);  // its errors come back as lines too
       ::close(to_child[1]);
       ::close(from_child[0]);
-      ::execlp("node", "node", o.faceapi_script.c_str(), "--serve", "--warmup", warmup.c_str(),
+      ::execlp("node", "node", o.faceapi_script.c_str(), "--serve", "--warmup", "0",
                static_cast<char*>(nullptr));
       ::_exit(127);
     }
@@ -977,8 +975,8 @@ int run(int argc, char** argv) {
   cv::setNumThreads(cv::getNumberOfCPUs());
   const int cv_threads = cv::getNumThreads();
 
-  // The TF.js peer: started (and warmed up) before anything else, then idle
-  // between the runs it is asked for (it and we never share the 2 cores).
+  // The TF.js peer: started before anything else, then idle between the
+  // runs it is asked for (it and we never share the 2 cores).
   std::fprintf(stderr, "nets_bench: starting face-api on TF.js...\n");
   TfjsServer tfjs(o);
   if (!tfjs.available())
