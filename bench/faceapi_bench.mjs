@@ -2,7 +2,10 @@
 // The TF.js peer of vkjr2's face-model benchmarks: face-api 1.7.15 on TF.js
 // 4.22 (WASM backend, SIMD, 1 thread) timing, per face, the recognition net
 // (150x150 input), the landmark net (one face crop) and the tiny face detector
-// at 416 on sample1. Median over --runs runs after --warmup warm-ups.
+// at 416 on sample1; and a batch of 8 faces through the recognition and the
+// landmark nets (net only: inputs already at the net's size, as face-api's
+// forward() takes an array of them). Median over --runs runs after --warmup
+// warm-ups.
 //
 //   node bench/faceapi_bench.mjs [--json out.json] [--runs 10] [--warmup 2]
 //        [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR]
@@ -25,6 +28,8 @@ import { decodeJpeg, loadFaceApi } from '../tests/parity/face_api_reference.mjs'
 
 const USAGE = `usage: node bench/faceapi_bench.mjs [--json out.json] [--runs 10] [--warmup 2]
        [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR] [--serve]`;
+
+const BATCH = 8;  // as kBatch in bench/nets_bench.cpp
 
 function parseArgs(argv) {
   const args = { runs: 10, warmup: 2, backend: 'wasm' };
@@ -114,6 +119,14 @@ async function main() {
   const [lmCrop] = await faceapi.extractFaceTensors(image, [faces[0].detection]);
   const [chip] = await faceapi.extractFaceTensors(image, [faces[0].landmarks.align(null, { useDlibAlignment: true })]);
   const chip150 = tf.tidy(() => new faceapi.NetInput([chip]).toBatchTensor(150, true).squeeze([0]));
+  const lm112 = tf.tidy(() => new faceapi.NetInput([lmCrop]).toBatchTensor(112, true).squeeze([0]));
+  // A batch of 8 faces, net only: face-api's forward() on an array of inputs
+  // already at the net's size (no resize), outputs read back.
+  const batch = async (net, input) => {
+    const out = await net.forward(Array(BATCH).fill(input));
+    await out.data();
+    out.dispose();
+  };
 
   const benches = [
     {
@@ -125,6 +138,16 @@ async function main() {
       name: 'faceapi_landmarks_112',
       what: `FaceLandmark68Net, one ${lmCrop.shape[1]}x${lmCrop.shape[0]} face crop (pad + resize to 112 included)`,
       fn: () => faceapi.nets.faceLandmark68Net.detectLandmarks(lmCrop),
+    },
+    {
+      name: 'faceapi_recognition_150_batch8',
+      what: `FaceRecognitionNet, batch of ${BATCH} 150x150 faces (net only), outputs read back`,
+      fn: () => batch(faceapi.nets.faceRecognitionNet, chip150),
+    },
+    {
+      name: 'faceapi_landmarks_112_batch8',
+      what: `FaceLandmark68Net, batch of ${BATCH} 112x112 faces (net only), outputs read back`,
+      fn: () => batch(faceapi.nets.faceLandmark68Net, lm112),
     },
     {
       name: 'faceapi_tiny_detector_416',
@@ -145,11 +168,11 @@ async function main() {
   };
   if (args.serve) {
     await serve(benches, args.warmup, about);
-    tf.dispose([image, lmCrop, chip, chip150]);
+    tf.dispose([image, lmCrop, chip, chip150, lm112]);
     return;
   }
   console.log(`${peer}, median of ${args.runs} runs after ${args.warmup} warm-ups`);
-  console.log(`${'benchmark'.padEnd(28)} ${'median ms'.padStart(10)} ${'min ms'.padStart(9)} ${'max ms'.padStart(9)} `
+  console.log(`${'benchmark'.padEnd(30)} ${'median ms'.padStart(10)} ${'min ms'.padStart(9)} ${'max ms'.padStart(9)} `
     + `${'faces/s'.padStart(8)}  what`);
   const results = [];
   for (const b of benches) {
@@ -164,10 +187,11 @@ async function main() {
       warmup: args.warmup,
       what: b.what,
     });
-    console.log(`${b.name.padEnd(28)} ${t.median.toFixed(2).padStart(10)} ${t.min.toFixed(2).padStart(9)} `
-      + `${t.max.toFixed(2).padStart(9)} ${(1000 / t.median).toFixed(1).padStart(8)}  ${b.what}`);
+    const faces = b.name.endsWith('_batch8') ? BATCH : 1;
+    console.log(`${b.name.padEnd(30)} ${t.median.toFixed(2).padStart(10)} ${t.min.toFixed(2).padStart(9)} `
+      + `${t.max.toFixed(2).padStart(9)} ${((1000 * faces) / t.median).toFixed(1).padStart(8)}  ${b.what}`);
   }
-  tf.dispose([image, lmCrop, chip, chip150]);
+  tf.dispose([image, lmCrop, chip, chip150, lm112]);
 
   if (args.json) {
     writeJsonAtomic(args.json, { ...about, results });

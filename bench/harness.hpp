@@ -87,15 +87,21 @@ inline void print_table(const std::string& title, const Device& device,
                         const std::vector<Result>& results) {
   std::printf("%s\ndevice: %s (%s)\nmachine: %s\n\n", title.c_str(), device.info().name.c_str(),
               device.info().driver_info.c_str(), machine_name().c_str());
-  std::printf("%-34s %12s %-9s %-30s %12s %8s %7s\n", "benchmark", "value", "unit", "peer",
-              "peer value", "ratio", "of peak");
+  // Columns as wide as their longest entry (at least the headers' usual widths).
+  int name_w = 34, peer_w = 30;
+  for (const Result& r : results) {
+    name_w = std::max(name_w, static_cast<int>(r.name.size()));
+    peer_w = std::max(peer_w, static_cast<int>(r.peer.size()));
+  }
+  std::printf("%-*s %12s %-9s %-*s %12s %8s %7s\n", name_w, "benchmark", "value", "unit", peer_w,
+              "peer", "peer value", "ratio", "of peak");
   for (const Result& r : results) {
     char peak[16] = "";
     if (r.fraction_of_device_peak >= 0) {
       std::snprintf(peak, sizeof peak, "%5.1f%%", 100 * r.fraction_of_device_peak);
     }
-    std::printf("%-34s %12.3f %-9s %-30s %12.3f %7.3fx %7s\n", r.name.c_str(), r.value,
-                r.unit.c_str(), r.peer.c_str(), r.peer_value, r.ratio_vs_peer(), peak);
+    std::printf("%-*s %12.3f %-9s %-*s %12.3f %7.3fx %7s\n", name_w, r.name.c_str(), r.value,
+                r.unit.c_str(), peer_w, r.peer.c_str(), r.peer_value, r.ratio_vs_peer(), peak);
   }
   std::printf("\nratio > 1: vkjr2 is better than the peer (throughput higher or time lower)\n");
 }

@@ -152,13 +152,6 @@ double median(std::vector<double> v) {
   return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
 
-// Median seconds of a and b, their runs interleaved.
-std::pair<double, double> median_interleaved(const std::function<void()>& a,
-                                             const std::function<void()>& b, int reps, int warmup) {
-  const auto t = time_interleaved({wall(a), wall(b)}, reps, warmup);
-  return {median(t[0]), median(t[1])};
-}
-
 // ---- the same networks through the cv::dnn API ------------------------------------
 
 // Builds a cv::dnn::Net layer by layer from TF.js weights (HWIO → OIHW), tracks
@@ -623,6 +616,8 @@ struct NetReport {
   double tf_ms = 0;                // 0: the TF.js peer is unavailable
   std::vector<double> tf_over_vk;  // per interleaved run, TF.js time / vkjr2 time
   double vk_batch_fps = 0, cv_batch_fps = 0;
+  double tf_batch_fps = 0;               // 0: the TF.js peer is unavailable
+  std::vector<double> tf_over_vk_batch;  // per interleaved batch run, TF.js time / vkjr2 time
   double check_vk_vs_cv = 0;       // max abs diff, same input
   double check_vk_vs_faceapi = 0;  // max abs diff vs face-api's reference output
   double check_batch = 0;          // batch item 0 vs the single run
@@ -649,6 +644,21 @@ void time_single(NetReport& r, const std::function<void()>& vk, const std::funct
   if (t.size() > 2) {
     r.tf_ms = median(t[2]) * 1e3;
     for (std::size_t i = 0; i < t[0].size(); ++i) r.tf_over_vk.push_back(t[2][i] / t[0][i]);
+  }
+}
+
+// The batch timing (kBatch faces, net only): vkjr2, OpenCV and the TF.js
+// peer's `tf_name`, runs interleaved, as faces per second.
+void time_batch(NetReport& r, const std::function<void()>& vk, const std::function<void()>& cv,
+                TfjsServer& tf, const std::string& tf_name, const Options& o) {
+  std::vector<Timed> fns = {wall(vk), wall(cv)};
+  if (tf.available()) fns.emplace_back([&] { return tf.run(tf_name); });
+  const auto t = time_interleaved(fns, o.runs, o.warmup);
+  r.vk_batch_fps = kBatch / median(t[0]);
+  r.cv_batch_fps = kBatch / median(t[1]);
+  if (t.size() > 2) {
+    r.tf_batch_fps = kBatch / median(t[2]);
+    for (std::size_t i = 0; i < t[0].size(); ++i) r.tf_over_vk_batch.push_back(t[2][i] / t[0][i]);
   }
 }
 
@@ -726,11 +736,9 @@ NetReport bench_recognition(const Device& dev, const fs::path& dir, const nlohma
         vk_run(s, [&](nets::Tape& t) { return net.forward(t, nets::Var(t0)); });
     r.check_batch = max_abs_diff(std::vector<float>(vkb.begin(), vkb.begin() + 128), single);
   }
-  const auto [tvb, tcb] = median_interleaved(
-      [&] { sink = vk_run(s, [&](nets::Tape& t) { return net.forward(t, nets::Var(txb)); }); },
-      [&] { sink = dnn_forward(dnn, bxb); }, o.runs, o.warmup);
-  r.vk_batch_fps = kBatch / tvb;
-  r.cv_batch_fps = kBatch / tcb;
+  time_batch(
+      r, [&] { sink = vk_run(s, [&](nets::Tape& t) { return net.forward(t, nets::Var(txb)); }); },
+      [&] { sink = dnn_forward(dnn, bxb); }, tf, "faceapi_recognition_150_batch8", o);
   return r;
 }
 
@@ -794,11 +802,9 @@ NetReport bench_landmarks(const Device& dev, const fs::path& dir, const nlohmann
         vk_run(s, [&](nets::Tape& t) { return net.forward(t, nets::Var(t0)); });
     r.check_batch = max_abs_diff(std::vector<float>(vkb.begin(), vkb.begin() + 136), single);
   }
-  const auto [tvb, tcb] = median_interleaved(
-      [&] { sink = vk_run(s, [&](nets::Tape& t) { return net.forward(t, nets::Var(txb)); }); },
-      [&] { sink = dnn_forward(dnn, bxb); }, o.runs, o.warmup);
-  r.vk_batch_fps = kBatch / tvb;
-  r.cv_batch_fps = kBatch / tcb;
+  time_batch(
+      r, [&] { sink = vk_run(s, [&](nets::Tape& t) { return net.forward(t, nets::Var(txb)); }); },
+      [&] { sink = dnn_forward(dnn, bxb); }, tf, "faceapi_landmarks_112_batch8", o);
   return r;
 }
 
@@ -917,7 +923,8 @@ void usage() {
       "usage: nets_bench [--json FILE] [--quick] [--runs N] [--no-tfjs] [--faceapi-script PATH]\n"
       "                  [--profile]\n"
       "Times face-api's FaceRecognitionNet (150x150), FaceLandmark68Net (112x112) and\n"
-      "TinyFaceDetector (416, sample1) on vkjr2's Vulkan device (VKJR2_DEVICE picks it)\n"
+      "TinyFaceDetector (416, sample1), one face at a time, and batches of 8 faces\n"
+      "through the first two (net only, faces/s) on vkjr2's Vulkan device (VKJR2_DEVICE picks it)\n"
       "against face-api on TF.js WASM (node bench/faceapi_bench.mjs --serve, after\n"
       "scripts/setup) and OpenCV DNN running the same networks with the same weights\n"
       "(built through the cv::dnn API, checked against vkjr2's output first), all in one\n"
@@ -1010,12 +1017,15 @@ int run(int argc, char** argv) {
     results.push_back(ms_row(row_names[i], n.vk_ms, tf_peer, n.tf_ms, n.flops, peak));
     results.push_back(ms_row(row_names[i], n.vk_ms, cv_peer, n.cv_ms, n.flops, peak));
     if (n.vk_batch_fps > 0) {
-      bench::Result br{std::string(i == 0 ? "recognition" : "landmarks") + " batch " +
-                           std::to_string(kBatch) + " (net only)",
-                       n.vk_batch_fps, "faces/s", cv_peer + ", batch " + std::to_string(kBatch),
-                       n.cv_batch_fps};
-      br.fraction_of_device_peak = n.flops * n.vk_batch_fps * 1e-9 / peak;
-      results.push_back(br);
+      const std::string batch = " batch " + std::to_string(kBatch);
+      const std::string name =
+          std::string(i == 0 ? "recognition" : "landmarks") + batch + " (net only)";
+      for (const auto& [peer, fps] : {std::pair{tf_peer, n.tf_batch_fps},
+                                      std::pair{cv_peer, n.cv_batch_fps}}) {
+        bench::Result br{name, n.vk_batch_fps, "faces/s", peer + "," + batch, fps};
+        br.fraction_of_device_peak = n.flops * n.vk_batch_fps * 1e-9 / peak;
+        results.push_back(br);
+      }
     }
   }
 
@@ -1063,6 +1073,14 @@ int run(int argc, char** argv) {
       std::printf("%s: TF.js / vkjr2 run by run: median %.3fx, range %.3f-%.3fx over %zu runs\n",
                   n.net.c_str(), median(n.tf_over_vk), *lo, *hi, n.tf_over_vk.size());
     }
+    if (!n.tf_over_vk_batch.empty()) {
+      const auto [lo, hi] =
+          std::minmax_element(n.tf_over_vk_batch.begin(), n.tf_over_vk_batch.end());
+      std::printf(
+          "%s: batch %d, TF.js / vkjr2 run by run: median %.3fx, range %.3f-%.3fx over %zu runs\n",
+          n.net.c_str(), kBatch, median(n.tf_over_vk_batch), *lo, *hi,
+          n.tf_over_vk_batch.size());
+    }
   }
 
   nlohmann::json j = bench::to_json(dev, results);
@@ -1089,6 +1107,8 @@ int run(int argc, char** argv) {
                          {"tfjs_over_vkjr2_per_run", n.tf_over_vk},
                          {"vkjr2_batch_faces_per_s", n.vk_batch_fps},
                          {"opencv_batch_faces_per_s", n.cv_batch_fps},
+                         {"tfjs_batch_faces_per_s", n.tf_batch_fps},
+                         {"tfjs_over_vkjr2_batch_per_run", n.tf_over_vk_batch},
                          {"max_abs_diff_vkjr2_opencv", n.check_vk_vs_cv},
                          {"max_abs_diff_vkjr2_faceapi", n.check_vk_vs_faceapi},
                          {"note", n.note}});
