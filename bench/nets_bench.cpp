@@ -618,9 +618,9 @@ struct NetReport {
   double vk_batch_fps = 0, cv_batch_fps = 0;
   double tf_batch_fps = 0;               // 0: the TF.js peer is unavailable
   std::vector<double> tf_over_vk_batch;  // per interleaved batch run, TF.js time / vkjr2 time
-  double check_vk_vs_cv = 0;       // max abs diff, same input
-  double check_vk_vs_faceapi = 0;  // max abs diff vs face-api's reference output
-  double check_batch = 0;          // batch item 0 vs the single run
+  double check_vk_vs_cv = 0;             // max abs diff, same input
+  double check_vk_vs_faceapi = 0;        // max abs diff vs face-api's reference output
+  double check_batch = 0;                // batch item 0 vs the single run
   std::string note;
 };
 
@@ -1020,8 +1020,8 @@ int run(int argc, char** argv) {
       const std::string batch = " batch " + std::to_string(kBatch);
       const std::string name =
           std::string(i == 0 ? "recognition" : "landmarks") + batch + " (net only)";
-      for (const auto& [peer, fps] : {std::pair{tf_peer, n.tf_batch_fps},
-                                      std::pair{cv_peer, n.cv_batch_fps}}) {
+      for (const auto& [peer, fps] :
+           {std::pair{tf_peer, n.tf_batch_fps}, std::pair{cv_peer, n.cv_batch_fps}}) {
         bench::Result br{name, n.vk_batch_fps, "faces/s", peer + "," + batch, fps};
         br.fraction_of_device_peak = n.flops * n.vk_batch_fps * 1e-9 / peak;
         results.push_back(br);
@@ -1078,8 +1078,7 @@ int run(int argc, char** argv) {
           std::minmax_element(n.tf_over_vk_batch.begin(), n.tf_over_vk_batch.end());
       std::printf(
           "%s: batch %d, TF.js / vkjr2 run by run: median %.3fx, range %.3f-%.3fx over %zu runs\n",
-          n.net.c_str(), kBatch, median(n.tf_over_vk_batch), *lo, *hi,
-          n.tf_over_vk_batch.size());
+          n.net.c_str(), kBatch, median(n.tf_over_vk_batch), *lo, *hi, n.tf_over_vk_batch.size());
     }
   }
 
