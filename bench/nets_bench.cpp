@@ -1018,11 +1018,15 @@ int run(int argc, char** argv) {
     results.push_back(ms_row(row_names[i], n.vk_ms, cv_peer, n.cv_ms, n.flops, peak));
     if (n.vk_batch_fps > 0) {
       const std::string batch = " batch " + std::to_string(kBatch);
-      const std::string name =
-          std::string(i == 0 ? "recognition" : "landmarks") + batch + " (net only)";
+      std::string name = i == 0 ? "recognition" : "landmarks";
+      name += batch;
+      name += " (net only)";
       for (const auto& [peer, fps] :
            {std::pair{tf_peer, n.tf_batch_fps}, std::pair{cv_peer, n.cv_batch_fps}}) {
-        bench::Result br{name, n.vk_batch_fps, "faces/s", peer + "," + batch, fps};
+        std::string peer_batch = peer;
+        peer_batch += ",";
+        peer_batch += batch;
+        bench::Result br{name, n.vk_batch_fps, "faces/s", peer_batch, fps};
         br.fraction_of_device_peak = n.flops * n.vk_batch_fps * 1e-9 / peak;
         results.push_back(br);
       }
