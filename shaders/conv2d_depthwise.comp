@@ -23,7 +23,10 @@ layout(constant_id = 6) const uint XRELU = 0u;
 // a block's taps start SH columns into its 4-aligned row segment.
 layout(constant_id = 9) const uint SH = 0u;
 // y stored by quads of pixels, one vec4 each (llvmpipe runs stores lane by
-// lane): PX and wout multiples of 4 and y's rows 4-aligned (yw, yleft).
+// lane). 1: PX and wout multiples of 4 and y's rows 4-aligned (yw, yleft).
+// 2: y plain (hout × wout planes) and a block is whole rows (PX == wout, ox0
+// == 0), so its RY · PX outputs are contiguous: RY · PX, hout · wout
+// multiples of 4 and hout a multiple of RY (every block full).
 layout(constant_id = 10) const uint STORE4 = 0u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u + SH;
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
@@ -90,6 +93,18 @@ void main() {
     }
   }
   const float b = pc.has_bias != 0u ? texelFetch(bias, int(co)).r : 0.0;
+  if (STORE4 == 2u) {
+    const uint q0 = ((n * pc.cout + co) * pc.hout + oy0) * pc.wout / 4u;
+    [[unroll]] for (uint j = 0u; j < RY * PX / 4u; ++j) {
+      vec4 v;
+      [[unroll]] for (uint k = 0u; k < 4u; ++k) {
+        const uint e = 4u * j + k;  // output (oy0 + e / PX, e % PX)
+        v[k] = conv_act(acc[e] + b + conv_residual(n, co, (oy0 + e / PX) * pc.wout + e % PX));
+      }
+      y4[q0 + j] = v;
+    }
+    return;
+  }
   // A padded y may end before the output does (its consumer reads no further).
   const uint plane = (n * pc.cout + co) * pc.yh;
   [[unroll]] for (uint q = 0u; q < RY; ++q) {

@@ -150,6 +150,17 @@ std::vector<Case> edge_cases() {
   c.p.pad = kernels::same_padding(28, 27, 3, 3, 2, 2);
   c.p.activation = Activation::none;
   cases.push_back(c);
+  c.d = {2, 5, 14, 14, 5, 3, 3};  // depthwise, blocks of 2 whole 14-pixel rows: vec4 stores
+  c.p.groups = 5;
+  c.p.stride_y = c.p.stride_x = 1;
+  c.p.pad = kernels::same_padding(14, 14, 3, 3, 1, 1);
+  c.p.activation = Activation::relu;
+  cases.push_back(c);
+  c.d = {1, 3, 4, 6, 6, 3, 3};  // depthwise ×2 channels, blocks of 4 whole 6-pixel rows
+  c.p.groups = 3;
+  c.p.activation = Activation::none;
+  c.p.pad = kernels::same_padding(4, 6, 3, 3, 1, 1);
+  cases.push_back(c);
   c.d = {1, 16, 7, 7, 24, 1, 1};  // pointwise, 49 pixels: scalar reads, channel blocks flattened
   c.p = {};
   cases.push_back(c);
