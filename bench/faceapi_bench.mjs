@@ -141,11 +141,13 @@ async function main() {
     },
     {
       name: 'faceapi_recognition_150_batch8',
+      faces: BATCH,
       what: `FaceRecognitionNet, batch of ${BATCH} 150x150 faces (net only), outputs read back`,
       fn: () => batch(faceapi.nets.faceRecognitionNet, chip150),
     },
     {
       name: 'faceapi_landmarks_112_batch8',
+      faces: BATCH,
       what: `FaceLandmark68Net, batch of ${BATCH} 112x112 faces (net only), outputs read back`,
       fn: () => batch(faceapi.nets.faceLandmark68Net, lm112),
     },
@@ -187,9 +189,9 @@ async function main() {
       warmup: args.warmup,
       what: b.what,
     });
-    const faces = b.name.endsWith('_batch8') ? BATCH : 1;
+    const facesPerRun = b.faces ?? 1;
     console.log(`${b.name.padEnd(30)} ${t.median.toFixed(2).padStart(10)} ${t.min.toFixed(2).padStart(9)} `
-      + `${t.max.toFixed(2).padStart(9)} ${((1000 * faces) / t.median).toFixed(1).padStart(8)}  ${b.what}`);
+      + `${t.max.toFixed(2).padStart(9)} ${((1000 * facesPerRun) / t.median).toFixed(1).padStart(8)}  ${b.what}`);
   }
   tf.dispose([image, lmCrop, chip, chip150, lm112]);
 

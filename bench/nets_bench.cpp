@@ -632,34 +632,45 @@ bench::Result ms_row(const std::string& name, double vk_ms, const std::string& p
   return r;
 }
 
-// The single-face timing: vkjr2, OpenCV and, when it is available, the
-// TF.js peer's benchmark `tf_name`, runs interleaved.
-void time_single(NetReport& r, const std::function<void()>& vk, const std::function<void()>& cv,
-                 TfjsServer& tf, const std::string& tf_name, const Options& o) {
+// Median seconds of vkjr2, OpenCV and, when it is available, the TF.js
+// peer's benchmark `tf_name` (0 when not), their runs interleaved, and each
+// run's TF.js / vkjr2 time ratio.
+struct PeerTimes {
+  double vk = 0, cv = 0, tf = 0;
+  std::vector<double> tf_over_vk;
+};
+
+PeerTimes time_peers(const std::function<void()>& vk, const std::function<void()>& cv,
+                     TfjsServer& tf, const std::string& tf_name, const Options& o) {
   std::vector<Timed> fns = {wall(vk), wall(cv)};
   if (tf.available()) fns.emplace_back([&] { return tf.run(tf_name); });
   const auto t = time_interleaved(fns, o.runs, o.warmup);
-  r.vk_ms = median(t[0]) * 1e3;
-  r.cv_ms = median(t[1]) * 1e3;
+  PeerTimes p{median(t[0]), median(t[1])};
   if (t.size() > 2) {
-    r.tf_ms = median(t[2]) * 1e3;
-    for (std::size_t i = 0; i < t[0].size(); ++i) r.tf_over_vk.push_back(t[2][i] / t[0][i]);
+    p.tf = median(t[2]);
+    for (std::size_t i = 0; i < t[0].size(); ++i) p.tf_over_vk.push_back(t[2][i] / t[0][i]);
   }
+  return p;
 }
 
-// The batch timing (kBatch faces, net only): vkjr2, OpenCV and the TF.js
-// peer's `tf_name`, runs interleaved, as faces per second.
+// The single-face timing, in ms.
+void time_single(NetReport& r, const std::function<void()>& vk, const std::function<void()>& cv,
+                 TfjsServer& tf, const std::string& tf_name, const Options& o) {
+  PeerTimes p = time_peers(vk, cv, tf, tf_name, o);
+  r.vk_ms = p.vk * 1e3;
+  r.cv_ms = p.cv * 1e3;
+  r.tf_ms = p.tf * 1e3;
+  r.tf_over_vk = std::move(p.tf_over_vk);
+}
+
+// The batch timing (kBatch faces, net only), in faces per second.
 void time_batch(NetReport& r, const std::function<void()>& vk, const std::function<void()>& cv,
                 TfjsServer& tf, const std::string& tf_name, const Options& o) {
-  std::vector<Timed> fns = {wall(vk), wall(cv)};
-  if (tf.available()) fns.emplace_back([&] { return tf.run(tf_name); });
-  const auto t = time_interleaved(fns, o.runs, o.warmup);
-  r.vk_batch_fps = kBatch / median(t[0]);
-  r.cv_batch_fps = kBatch / median(t[1]);
-  if (t.size() > 2) {
-    r.tf_batch_fps = kBatch / median(t[2]);
-    for (std::size_t i = 0; i < t[0].size(); ++i) r.tf_over_vk_batch.push_back(t[2][i] / t[0][i]);
-  }
+  PeerTimes p = time_peers(vk, cv, tf, tf_name, o);
+  r.vk_batch_fps = kBatch / p.vk;
+  r.cv_batch_fps = kBatch / p.cv;
+  r.tf_batch_fps = p.tf > 0 ? kBatch / p.tf : 0;
+  r.tf_over_vk_batch = std::move(p.tf_over_vk);
 }
 
 std::vector<const HostTensor*> pick(const std::vector<HostTensor>& all) {
