@@ -274,16 +274,19 @@ std::uint32_t group_lanes(std::uint64_t invocations) {
   return wg;
 }
 
-// The pointwise kernel's tile: 8 pixels × co output channels per
+// The pointwise kernel's tile: px pixels × co output channels per
 // invocation, the input-channel loop unrolled by `unroll`. Measured on
 // lavapipe (landmark-net shapes 32→32 at 56² to 256→256 at 7², process CPU
-// time, 2026-12-03): unrolling by 4 cuts 14–20 % (our reading, not
-// measured directly: llvmpipe updates a loop's carried accumulators under
-// the loop's lane mask once per iteration, steps unrolled inside one
-// iteration skip that); 16 channels (each input fetch feeds twice the FMAs)
-// another 2–9 %.
+// time, 2026-12-03): unrolling by 4 cut 14–20 %; fetching a step's channels
+// first and then updating each accumulator once for all of them another
+// 15–25 % (the JIT-compiled code, read with perf: the CO·PX accumulators live
+// on the stack, and each update is a load, a blend under the loop's lane
+// mask and a store); 16 channels (each input fetch feeds twice the FMAs)
+// 2–9 %; 16 pixels instead of 8 5–15 % alone on the landmark and detector
+// shapes (56² to 7², 208² to 13²), but in the landmark net only on its 56²
+// and 28² layers (whole forward passes, variants interleaved).
 struct PointwiseTile {
-  std::uint32_t co = kCoBlock, unroll = 1;
+  std::uint32_t co = kCoBlock, unroll = 1, px = kPx;
 };
 
 PointwiseTile pointwise_tile(const ConvPush& c) {
@@ -291,6 +294,9 @@ PointwiseTile pointwise_tile(const ConvPush& c) {
   // 16 channels read two 8-channel blocks of the packed weights: only when
   // both exist (cout a multiple of 16).
   if (c.cout % (2 * kCoBlock) == 0) t.co = 2 * kCoBlock;
+  // 16 pixels on planes of 512 or more (landmark net: 28² and 56²; 14² and
+  // 7² ran slower in the net).
+  if (std::uint64_t(c.h) * c.w >= 512) t.px = 2 * kPx;
   for (std::uint32_t u : {4u, 2u}) {
     if (c.cin % u == 0) {
       t.unroll = u;
@@ -447,7 +453,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
       const PointwiseTile t = pointwise_tile(c);
       const std::uint64_t blocks =
-          div_up(std::uint64_t(c.h) * c.w, std::uint64_t(kPx)) * div_up(c.cout, t.co);
+          div_up(std::uint64_t(c.h) * c.w, std::uint64_t(t.px)) * div_up(c.cout, t.co);
       const std::uint32_t wg = group_lanes(blocks * c.n);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
@@ -458,13 +464,13 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const bool res4 =
           store4 &&
           (c.has_res == 1 || (c.has_res == 2 && c.w % 4 == 0 && c.wp % 4 == 0 && c.pl % 4 == 0));
-      stream.dispatch(
-          kPointwise,
-          {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
-           texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt),
-           texel(r, res4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT)},
-          c, g,
-          {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, res4 ? 1u : 0u, 0, t.co, t.unroll, 0, c.has_res});
+      stream.dispatch(kPointwise,
+                      {texel(x, vec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
+                       texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt),
+                       texel(r, res4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT)},
+                      c, g,
+                      {vec4 ? 1u : 0u, wg, store4 ? 1u : 0u, res4 ? 1u : 0u, t.px, t.co, t.unroll,
+                       0, c.has_res});
       return;
     }
     case Conv2dAlgo::blocked: {

@@ -21,7 +21,7 @@ layout(constant_id = 2) const uint STORE4 = 0u;
 // STORE4 and the residual read by quads as well (an RGBA32F view): plain, or
 // padded with w, wp and pl multiples of 4.
 layout(constant_id = 3) const uint RES4 = 0u;
-const uint PX = 8u;
+layout(constant_id = 4) const uint PX = 8u;  // pixels per invocation, a multiple of 4
 const uint NQ = PX / 4u;  // VEC4: quads of pixels
 // Output channels per invocation: 8 or 16 (cout % 16 == 0), as NB vec4s.
 layout(constant_id = 5) const uint CO = 8u;
@@ -39,27 +39,6 @@ layout(std430, binding = 3) writeonly buffer Y4 { vec4 y4[]; };  // the same buf
 vec4 acc[NB * PX];
 int pix[PX];  // !VEC4: the pixels (a last block's extra lanes re-read the last one)
 int q[NQ];    // VEC4: the quads of pixels
-
-// One input channel: its plane at xbase, its CO weights w[b] (channels 4b..4b+3).
-void accumulate(int xbase, vec4 w[NB]) {
-  if (VEC4 != 0u) {
-    [[unroll]] for (uint h = 0u; h < NQ; ++h) {
-      const vec4 v = texelFetch(x, xbase + q[h]);
-      [[unroll]] for (uint p = 0u; p < 4u; ++p) {
-        [[unroll]] for (uint b = 0u; b < NB; ++b) {
-          acc[b * PX + 4u * h + p] = fma(vec4(v[p]), w[b], acc[b * PX + 4u * h + p]);
-        }
-      }
-    }
-  } else {
-    [[unroll]] for (uint p = 0u; p < PX; ++p) {
-      const float v = texelFetch(x, xbase + pix[p]).r;
-      [[unroll]] for (uint b = 0u; b < NB; ++b) {
-        acc[b * PX + p] = fma(vec4(v), w[b], acc[b * PX + p]);
-      }
-    }
-  }
-}
 
 // RES4: the residual of channel co at the quad starting at flat pixel qpix,
 // row qy, column qx.
@@ -94,15 +73,36 @@ void main() {
   // cin · 2 texels apart.
   int wi = int(cob * (CO / 8u) * pc.cin * 2u);
   const int wstep = int(pc.cin * 2u);
+  // Each step fetches UNROLL channels' weights and pixels first, then
+  // updates each accumulator once with all of them: the CO · PX accumulators
+  // live on the stack, and llvmpipe loads, updates (under the loop's lane
+  // mask) and stores each one once per step instead of once per channel
+  // (15–25 % less CPU time on the landmark net's shapes). The sums run in
+  // channel order all the same.
   for (uint c = 0u; c < pc.cin; c += UNROLL) {
+    vec4 w[UNROLL * NB];  // w[u · NB + b]: channel c + u's weights for outputs 4b..4b+3
+    float v[UNROLL * PX];  // v[u · PX + p]: channel c + u at pixel p
     [[unroll]] for (uint u = 0u; u < UNROLL; ++u) {
-      vec4 w[NB];
       [[unroll]] for (uint b = 0u; b < NB; ++b) {
-        w[b] = texelFetch(packed, wi + int(b / 2u) * wstep + int(b % 2u));
+        w[u * NB + b] = texelFetch(packed, wi + int(b / 2u) * wstep + int(b % 2u));
       }
-      accumulate(xbase, w);
-      xbase += stride;
       wi += 2;
+      if (VEC4 != 0u) {
+        [[unroll]] for (uint h = 0u; h < NQ; ++h) {
+          const vec4 t = texelFetch(x, xbase + q[h]);
+          [[unroll]] for (uint p = 0u; p < 4u; ++p) v[u * PX + 4u * h + p] = t[p];
+        }
+      } else {
+        [[unroll]] for (uint p = 0u; p < PX; ++p) v[u * PX + p] = texelFetch(x, xbase + pix[p]).r;
+      }
+      xbase += stride;
+    }
+    [[unroll]] for (uint p = 0u; p < PX; ++p) {
+      [[unroll]] for (uint b = 0u; b < NB; ++b) {
+        vec4 a = acc[b * PX + p];
+        [[unroll]] for (uint u = 0u; u < UNROLL; ++u) a = fma(vec4(v[u * PX + p]), w[u * NB + b], a);
+        acc[b * PX + p] = a;
+      }
     }
   }
 

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <functional>
+#include <limits>
 #include <random>
 #include <sstream>
 #include <string>
@@ -178,6 +179,12 @@ std::vector<Case> edge_cases() {
   c.d = {2, 5, 4, 4, 16, 1, 1};  // not unrolled, one 16-channel block
   c.p.activation = Activation::leaky_relu;
   cases.push_back(c);
+  // Pointwise, 16 pixels per invocation (planes of 512 pixels or more).
+  c.d = {1, 8, 23, 23, 16, 1, 1};  // 529 pixels: scalar reads, a last block of 1 pixel
+  c.p.activation = Activation::none;
+  cases.push_back(c);
+  c.d = {2, 12, 20, 26, 24, 1, 1};  // 520: vec4 reads and stores, a last block of 8 pixels
+  cases.push_back(c);
   return cases;
 }
 
@@ -235,6 +242,9 @@ void check_forward(const Case& c, std::uint32_t seed) {
     Tensor y3 = Tensor::empty(dev, y_shape(c));
     Tensor y4 = Tensor::empty(dev, y_shape(c));
     Stream s(dev);
+    // NaN first: pooled memory may still hold another variant's right answer,
+    // which would hide outputs a variant never writes.
+    for (const Tensor* t : {&y, &y2, &y3, &y4}) s.fill(*t, std::numeric_limits<float>::quiet_NaN());
     kernels::conv2d(s, x, w, &b, y, p);
     kernels::conv2d(s, x, w, nullptr, y2, p);
     // Weights packed once, ahead of the call (what models do at load).
