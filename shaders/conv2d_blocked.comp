@@ -47,49 +47,41 @@ void main() {
   vec4 a[CG * RY * PX];  // a[(g · RY + r) · PX + p]
   [[unroll]] for (uint i = 0u; i < CG * RY * PX; ++i) a[i] = vec4(0.0);
   const int plane = int(pc.hp * pc.wp / 4u);
+  // Input rows: dy apart (RY == 1), or consecutive (RY > 1 needs sy = dy = 1).
   const int row_step = int(pc.dy * pc.wp / 4u);
   int xbase = int((((n * pc.cin) * pc.hp + oy0 * pc.sy) * pc.wp + ox0 * SX) / 4u);
   // Packed texel of (channel block of 8, cin, tap, half): ((cb8·cin + c)·KH·KW + tap)·2 + half.
   int wbase = int((co0 / 8u) * pc.cin * KH * KW * 2u + (co0 % 8u) / 4u);
+  // Per input channel: its NR input rows and KH·KW taps' weights are fetched
+  // first, then each accumulator takes all its KH·KW taps at once. llvmpipe
+  // keeps the accumulators on the stack (a load, a blend under the loop's
+  // lane mask and a store per update), so one update per channel instead of
+  // one per tap. The taps are summed in the same order as before.
   for (uint c = 0u; c < pc.cin; ++c) {
-    if (RY == 1u) {
-      [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-        const int rb = xbase + int(ky) * row_step;
-        vec4 r[SEG4];
-        [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = texelFetch(xp, rb + int(j));
-        [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
-          const int wi = wbase + int((ky * KW + kx) * 2u);
-          vec4 w[CG];
-          [[unroll]] for (uint g = 0u; g < CG; ++g) w[g] = texelFetch(packed, wi + int(g));
-          [[unroll]] for (uint p = 0u; p < PX; ++p) {
-            const float v = r[(p * SX + kx * DX) / 4u][(p * SX + kx * DX) % 4u];
-            [[unroll]] for (uint g = 0u; g < CG; ++g) {
-              a[g * PX + p] = fma(vec4(v), w[g], a[g * PX + p]);
-            }
-          }
-        }
+    vec4 r[NR * SEG4];  // input rows (row i: output row q, tap ky with q + ky = i)
+    [[unroll]] for (uint i = 0u; i < NR; ++i) {
+      [[unroll]] for (uint j = 0u; j < SEG4; ++j) {
+        r[i * SEG4 + j] = texelFetch(xp, xbase + int(i) * row_step + int(j));
       }
-    } else {
-      vec4 r[NR * SEG4];
-      [[unroll]] for (uint i = 0u; i < NR; ++i) {
-        [[unroll]] for (uint j = 0u; j < SEG4; ++j) {
-          r[i * SEG4 + j] = texelFetch(xp, xbase + int(i * pc.wp / 4u + j));
-        }
+    }
+    vec4 w[KH * KW * CG];  // w[tap · CG + g]
+    [[unroll]] for (uint t = 0u; t < KH * KW; ++t) {
+      [[unroll]] for (uint g = 0u; g < CG; ++g) {
+        w[t * CG + g] = texelFetch(packed, wbase + int(t * 2u + g));
       }
-      [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-        [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
-          const int wi = wbase + int((ky * KW + kx) * 2u);
-          vec4 w[CG];
-          [[unroll]] for (uint g = 0u; g < CG; ++g) w[g] = texelFetch(packed, wi + int(g));
-          [[unroll]] for (uint q = 0u; q < RY; ++q) {
-            [[unroll]] for (uint p = 0u; p < PX; ++p) {
+    }
+    [[unroll]] for (uint g = 0u; g < CG; ++g) {
+      [[unroll]] for (uint q = 0u; q < RY; ++q) {
+        [[unroll]] for (uint p = 0u; p < PX; ++p) {
+          vec4 acc = a[(g * RY + q) * PX + p];
+          [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+            [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
               const uint col = p * SX + kx * DX;
               const float v = r[(q + ky) * SEG4 + col / 4u][col % 4u];
-              [[unroll]] for (uint g = 0u; g < CG; ++g) {
-                a[(g * RY + q) * PX + p] = fma(vec4(v), w[g], a[(g * RY + q) * PX + p]);
-              }
+              acc = fma(vec4(v), w[(ky * KW + kx) * CG + g], acc);
             }
           }
+          a[(g * RY + q) * PX + p] = acc;
         }
       }
     }
