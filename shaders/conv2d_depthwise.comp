@@ -30,7 +30,7 @@ layout(constant_id = 9) const uint SH = 0u;
 layout(constant_id = 10) const uint STORE4 = 0u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u + SH;
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
-const uint NR = RY + KH - 1u;       // input rows of one block when RY > 1
+const uint NR = RY + KH - 1u;       // input rows of one block
 
 layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp], zero-padded
 layout(binding = 1) uniform samplerBuffer weight;  // [cout, 1, kh, kw]
@@ -56,40 +56,30 @@ void main() {
   const uint ox0 = (pb % pc.wblocks) * PX;
 
   float acc[RY * PX];  // acc[q · PX + p]
-  [[unroll]] for (uint i = 0u; i < RY * PX; ++i) acc[i] = 0.0;
   const int xbase = int((((n * pc.cin + ci) * pc.hp + oy0 * pc.sy) * pc.wp + ox0 * SX) / 4u);
   const int wbase = int(co * KH * KW);
-  if (RY == 1u) {
-    const int row_step = int(pc.dy * pc.wp / 4u);
-    [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-      const int rb = xbase + int(ky) * row_step;
-      vec4 r[SEG4];
-      [[unroll]] for (uint j = 0u; j < SEG4; ++j) r[j] = load(rb + int(j));
-      [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
-        const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
-        [[unroll]] for (uint p = 0u; p < PX; ++p) {
-          const uint k = p * SX + kx * DX + SH;
-          acc[p] = fma(r[k / 4u][k % 4u], wv, acc[p]);
+  // Every input row and tap weight first, then each output's KH·KW taps at
+  // once: one accumulator live at a time, so fewer values spilled to the
+  // stack (2–3 % less CPU time over the landmark net).
+  const int row_step = int(pc.dy * pc.wp / 4u);  // RY > 1 needs sy = dy = 1
+  vec4 r[NR * SEG4];  // row i: output row q, tap ky with q + ky = i
+  [[unroll]] for (uint i = 0u; i < NR; ++i) {
+    [[unroll]] for (uint j = 0u; j < SEG4; ++j) {
+      r[i * SEG4 + j] = load(xbase + int(i) * row_step + int(j));
+    }
+  }
+  float wv[KH * KW];
+  [[unroll]] for (uint t = 0u; t < KH * KW; ++t) wv[t] = texelFetch(weight, wbase + int(t)).r;
+  [[unroll]] for (uint q = 0u; q < RY; ++q) {
+    [[unroll]] for (uint p = 0u; p < PX; ++p) {
+      float a = 0.0;
+      [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
+        [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
+          const uint col = p * SX + kx * DX + SH;
+          a = fma(r[(q + ky) * SEG4 + col / 4u][col % 4u], wv[ky * KW + kx], a);
         }
       }
-    }
-  } else {
-    vec4 r[NR * SEG4];
-    [[unroll]] for (uint i = 0u; i < NR; ++i) {
-      [[unroll]] for (uint j = 0u; j < SEG4; ++j) {
-        r[i * SEG4 + j] = load(xbase + int(i * pc.wp / 4u + j));
-      }
-    }
-    [[unroll]] for (uint ky = 0u; ky < KH; ++ky) {
-      [[unroll]] for (uint kx = 0u; kx < KW; ++kx) {
-        const float wv = texelFetch(weight, wbase + int(ky * KW + kx)).r;
-        [[unroll]] for (uint q = 0u; q < RY; ++q) {
-          [[unroll]] for (uint p = 0u; p < PX; ++p) {
-            const uint col = p * SX + kx * DX + SH;
-            acc[q * PX + p] = fma(r[(q + ky) * SEG4 + col / 4u][col % 4u], wv, acc[q * PX + p]);
-          }
-        }
-      }
+      acc[q * PX + p] = a;
     }
   }
   const float b = pc.has_bias != 0u ? texelFetch(bias, int(co)).r : 0.0;
