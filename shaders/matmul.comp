@@ -6,7 +6,7 @@
 // 32 FMAs), the r loop unrolled by 4; no shared memory (LAVAPIPE.md). Edge
 // tiles clamp their reads into range and skip the out-of-range writes.
 #include "common.glsl"
-layout(local_size_x = 64) in;
+layout(local_size_x_id = 0) in;  // 8..64: fewer lanes per group on small products
 layout(binding = 0) uniform samplerBuffer a;
 layout(binding = 1) uniform samplerBuffer b;
 layout(binding = 2) uniform samplerBuffer bias;
@@ -21,7 +21,7 @@ layout(push_constant) uniform Push {
 const uint TM = 4u, TN = 8u;
 
 void main() {
-  const uint tile = linear_group() * 64u + gl_LocalInvocationID.x;
+  const uint tile = linear_group() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
   const uint tp = tile / pc.tiles_q, tq = tile - tp * pc.tiles_q;
   const uint p0 = tp * TM, q0 = tq * TN;
   if (p0 >= pc.p_len) return;
