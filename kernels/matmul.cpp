@@ -7,8 +7,8 @@
 namespace vkjr2::kernels {
 namespace {
 
-constexpr std::uint32_t kTileM = 4, kTileN = 8,
-                        kGroup = 64;  // shaders/matmul.comp (group: at most)
+// shaders/matmul.comp's tile; kGroup: lanes per workgroup at most.
+constexpr std::uint32_t kTileM = 4, kTileN = 8, kGroup = 64;
 
 struct MatmulPush {
   std::uint32_t p_len, q_len, r_len;
