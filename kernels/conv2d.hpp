@@ -41,9 +41,10 @@
 //              dilation_x and the tile are specialization constants. 3×3 64→64
 //              128² on lavapipe (shared 2-core machine): 26–32 GFLOP/s; the
 //              face ResNet's 35²..2² planes: ~40.
-//   pointwise  1×1, stride 1, no padding, groups == 1 (a matmul): 8 channels ×
-//              8 consecutive pixels per invocation (vec4 reads when H·W % 4 == 0),
-//              (pixel block, channel block) pairs flattened over the workgroups.
+//   pointwise  1×1, stride 1, no padding, groups == 1 (a matmul): 8 or 16
+//              channels × 8 or 16 consecutive pixels per invocation (vec4 reads
+//              when H·W % 4 == 0), (pixel block, channel block) pairs flattened
+//              over the workgroups.
 //   depthwise  groups == Cin, Cout a multiple of Cin (channel multiplier): one
 //              channel × 1..4 rows × up to 16 pixels per invocation, chosen per
 //              shape; padded input as for blocked (its own tile's geometry).
