@@ -265,15 +265,6 @@ std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p, Conv2dAlgo a
   return std::uint64_t(d.n) * std::uint64_t(d.cin) * c.hp * c.wp;
 }
 
-// Lanes per workgroup for `blocks` invocations per image: 64, or fewer when
-// that would leave some CPU threads without a workgroup (llvmpipe gives each
-// thread whole workgroups).
-std::uint32_t group_lanes(std::uint64_t invocations) {
-  std::uint32_t wg = kBlockedGroup;
-  while (wg > 8 && invocations < std::uint64_t(wg) * 4) wg /= 2;
-  return wg;
-}
-
 // The pointwise kernel's tile: px pixels × co output channels per
 // invocation, the input-channel loop unrolled by `unroll`. Measured on
 // lavapipe (landmark-net shapes 32→32 at 56² to 256→256 at 7², process CPU
@@ -454,7 +445,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const PointwiseTile t = pointwise_tile(c);
       const std::uint64_t blocks =
           div_up(std::uint64_t(c.h) * c.w, std::uint64_t(t.px)) * div_up(c.cout, t.co);
-      const std::uint32_t wg = group_lanes(blocks * c.n);
+      const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       // y by quads of pixels (the shader's STORE4): plain, or padded with aligned rows.
@@ -482,7 +473,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       // (pixel block, channel block) pairs, flattened (the shader splits them).
       const std::uint64_t blocks =
           std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * div_up(c.cout, 4 * t.cg);
-      const std::uint32_t wg = group_lanes(blocks * c.n);
+      const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       stream.dispatch(kBlocked,
@@ -498,7 +489,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
       // (pixel block, channel) pairs, flattened (the shader splits them).
       const std::uint64_t blocks = std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * c.cout;
-      const std::uint32_t wg = group_lanes(blocks * c.n);
+      const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       // y by quads of pixels (the shader's STORE4): 1, whole aligned quads in

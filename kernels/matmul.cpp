@@ -28,11 +28,9 @@ void gemm(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& c, con
   push.tiles_q = div_up(push.q_len, kTileN);
   push.has_bias = bias != nullptr ? 1u : 0u;
   const std::uint64_t tiles = std::uint64_t(div_up(push.p_len, kTileM)) * push.tiles_q;
-  // Fewer lanes per group when there are few tiles, so that every CPU thread
-  // gets a group (llvmpipe runs a group on one thread): a linear layer on
-  // one row (the landmark net's fc, 17 tiles) had all of them in one group.
-  std::uint32_t lanes = kGroup;
-  while (lanes > 8 && tiles < std::uint64_t(lanes) * 4) lanes /= 2;
+  // Fewer lanes per group when there are few tiles: a linear layer on one
+  // row (the landmark net's fc, 17 tiles) had all of them in one group.
+  const std::uint32_t lanes = group_lanes(tiles, kGroup);
   stream.dispatch(k, {texel(a), texel(b), texel(bias != nullptr ? *bias : b), out(c)}, push,
                   groups_1d(div_up(tiles, lanes), stream.device().info()), {lanes});
 }

@@ -64,4 +64,14 @@ inline Groups groups_1d(std::uint64_t n_groups, const DeviceInfo& info) {
   return {static_cast<std::uint32_t>((n_groups + y - 1) / y), static_cast<std::uint32_t>(y), 1};
 }
 
+// Lanes per workgroup (a shader's local_size_x_id) for `invocations`
+// invocations: max_lanes, halved down to 8 while that would leave fewer
+// than 4 workgroups, so that every CPU thread gets one (llvmpipe runs a
+// workgroup on one thread).
+inline std::uint32_t group_lanes(std::uint64_t invocations, std::uint32_t max_lanes = 64) {
+  std::uint32_t lanes = max_lanes;
+  while (lanes > 8 && invocations < std::uint64_t(lanes) * 4) lanes /= 2;
+  return lanes;
+}
+
 }  // namespace vkjr2
