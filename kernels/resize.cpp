@@ -60,6 +60,31 @@ void dispatch_resize(Stream& stream, const Tensor& src, const Tensor& dst, const
                   {backward ? 1u : 0u, mode == ResizeMode::nearest ? 1u : 0u});
 }
 
+// Mirrors the push block of shaders/resize_into_padded.comp.
+struct IntoPaddedPush {
+  std::uint32_t channels;
+  std::int32_t in_h, in_w, out_h, out_w;
+  std::uint32_t mode;
+  float scale_h, scale_w;
+  Magic blocks_magic;
+  std::int32_t src_h, src_w, src_top, src_left;
+  std::uint32_t hp, wp, top, left;
+};
+static_assert(sizeof(IntoPaddedPush) <= 128);
+
+void require_canvas(const char* op, const Tensor& x, const ResizeCanvas& c) {
+  const std::int64_t h = x.shape()[2], w = x.shape()[3];
+  if (c.top < 0 || c.left < 0 || c.top + h > c.height || c.left + w > c.width ||
+      c.height > INT32_MAX || c.width > INT32_MAX) {
+    throw InvalidArgument(op,
+                          "canvas " + std::to_string(c.height) + "×" + std::to_string(c.width) +
+                              " does not hold x " + x.shape().str() + " at (" +
+                              std::to_string(c.top) + ", " + std::to_string(c.left) + ")",
+                          "pass a canvas that holds x at a non-negative (top, left): the padded "
+                          "size and the padding before x");
+  }
+}
+
 void require_batch_match(const Tensor& a, const Tensor& b, const char* op, const char* a_name,
                          const char* b_name) {
   if (a.shape()[0] != b.shape()[0] || a.shape()[1] != b.shape()[1]) {
@@ -88,19 +113,82 @@ void resize_zero_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
   require_f32_rank(x, 4, op, "x");
   require_f32_rank(y, 4, op, "y");
   require_batch_match(x, y, op, "x", "y");
+  require_canvas(op, x, canvas);
   const std::int64_t h = x.shape()[2], w = x.shape()[3];
   const auto& c = canvas;
-  if (c.top < 0 || c.left < 0 || c.top + h > c.height || c.left + w > c.width ||
-      c.height > INT32_MAX || c.width > INT32_MAX) {
-    throw InvalidArgument(op,
-                          "canvas " + std::to_string(c.height) + "×" + std::to_string(c.width) +
-                              " does not hold x " + x.shape().str() + " at (" +
-                              std::to_string(c.top) + ", " + std::to_string(c.left) + ")",
-                          "pass a canvas that holds x at a non-negative (top, left): the padded "
-                          "size and the padding before x");
-  }
   const Shape in{x.shape()[0], x.shape()[1], c.height, c.width};
   dispatch_resize(stream, x, y, in, y.shape(), mode, false, {h, w, c.top, c.left});
+}
+
+void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& canvas,
+                        ResizeMode mode, const Tensor& scale, const Tensor& shift,
+                        const Conv2dPadded& y, const Tensor* nonfinite) {
+  static const KernelDef k{"resize_into_padded",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::texel,
+                            BindingKind::storage, BindingKind::storage},
+                           sizeof(IntoPaddedPush)};
+  const char* op = "resize_into_padded";
+  require_f32_rank(x, 4, op, "x");
+  require_canvas(op, x, canvas);
+  if (!y.defined() || y.shape.rank() != 4) {
+    throw InvalidArgument(op, "y is not a padded tensor",
+                          "pass conv2d_padded_input of the network input's shape");
+  }
+  const Shape& ys = y.shape;
+  const std::int64_t planes = ys[0] * ys[1], oh = ys[2], ow = ys[3];
+  if (x.shape()[0] != ys[0] || x.shape()[1] != ys[1]) {
+    throw InvalidArgument(op, "x " + x.shape().str() + " and y " + ys.str() + " differ in N or C");
+  }
+  if (oh < 1 || ow < 1 || y.top < 0 || y.left < 0 || y.top + oh > y.hp || y.left + ow > y.wp ||
+      std::int64_t(planes) * y.hp * y.wp > y.data.numel() || x.numel() > INT32_MAX ||
+      y.data.numel() > INT32_MAX || planes > 65535) {
+    throw InvalidArgument(op,
+                          "padded planes " + std::to_string(y.hp) + "×" + std::to_string(y.wp) +
+                              " (data " + y.data.shape().str() + ") do not hold y " + ys.str() +
+                              " at (" + std::to_string(y.top) + ", " + std::to_string(y.left) + ")",
+                          "pass conv2d_padded_input of y's shape");
+  }
+  if (require_f32(scale, op, "scale") != std::uint32_t(ys[1]) ||
+      require_f32(shift, op, "shift") != std::uint32_t(ys[1])) {
+    throw InvalidArgument(op, "scale " + scale.shape().str() + " and shift " + shift.shape().str() +
+                                  " must hold one value per channel (" + std::to_string(ys[1]) +
+                                  ")");
+  }
+  if (nonfinite != nullptr && require_f32(*nonfinite, op, "nonfinite") != 1) {
+    throw InvalidArgument(op, "nonfinite must have one element, got " + nonfinite->shape().str());
+  }
+  if (static_cast<std::uint32_t>(mode) > 3) {
+    throw InvalidArgument(op, "unknown mode " + std::to_string(static_cast<std::uint32_t>(mode)));
+  }
+  const std::uint64_t blocks_x = div_up(std::uint64_t(ow), 4);
+  const IntoPaddedPush push{static_cast<std::uint32_t>(ys[1]),
+                            static_cast<std::int32_t>(canvas.height),
+                            static_cast<std::int32_t>(canvas.width),
+                            static_cast<std::int32_t>(oh),
+                            static_cast<std::int32_t>(ow),
+                            static_cast<std::uint32_t>(mode),
+                            axis_scale(mode, canvas.height, oh),
+                            axis_scale(mode, canvas.width, ow),
+                            magic(blocks_x),
+                            static_cast<std::int32_t>(x.shape()[2]),
+                            static_cast<std::int32_t>(x.shape()[3]),
+                            static_cast<std::int32_t>(canvas.top),
+                            static_cast<std::int32_t>(canvas.left),
+                            y.hp,
+                            y.wp,
+                            static_cast<std::uint32_t>(y.top),
+                            static_cast<std::uint32_t>(y.left)};
+  const bool store4 = ow % 4 == 0 && y.wp % 4 == 0 && y.left % 4 == 0;
+  const std::uint64_t items = std::uint64_t(oh) * blocks_x;
+  const std::uint32_t lanes = group_lanes(items);
+  Groups g = groups_1d(div_up(items, lanes), stream.device().info());
+  g.z = static_cast<std::uint32_t>(planes);
+  stream.dispatch(k,
+                  {texel(x), texel(scale), texel(shift), vkjr2::out(y.data),
+                   vkjr2::out(nonfinite != nullptr ? *nonfinite : y.data)},
+                  push, g,
+                  {mode == ResizeMode::nearest ? 1u : 0u, store4 ? 1u : 0u,
+                   nonfinite != nullptr ? 1u : 0u, lanes});
 }
 
 void resize_backward(Stream& stream, const Tensor& dy, ResizeMode mode, const Tensor& dx) {

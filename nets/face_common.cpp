@@ -164,27 +164,29 @@ void WeightReader::finish() const {
   }
 }
 
+kernels::ResizeCanvas square_canvas(std::int64_t h, std::int64_t w) {
+  const std::int64_t side = std::max(h, w);
+  const auto after = std::int64_t(js_round_half(std::abs(h - w)));
+  const std::int64_t before = std::abs(h - w) - after;
+  return {side, side, h > w ? 0 : before, h > w ? before : 0};
+}
+
 Var pad_to_square_and_resize(Tape& t, const Var& image, std::int64_t size) {
-  const std::int64_t h = image.shape()[2], w = image.shape()[3], side = std::max(h, w);
-  const std::int64_t diff = std::abs(h - w);
-  const auto after = std::int32_t(js_round_half(diff));
-  const auto before = std::int32_t(diff - after);
-  kernels::Pad2d p;
-  if (h > w) {
-    p.left = before;
-    p.right = after;
-  } else {
-    p.top = before;
-    p.bottom = after;
-  }
+  const std::int64_t h = image.shape()[2], w = image.shape()[3];
+  const kernels::ResizeCanvas canvas = square_canvas(h, w);
+  const std::int64_t side = canvas.height;
   const auto legacy = kernels::ResizeMode::bilinear_legacy;
   if (side != size && !t.needs_grad({&image})) {
     Tensor y = Tensor::empty(image.value().device(),
                              Shape{image.shape()[0], image.shape()[1], size, size});
-    kernels::resize_zero_padded(t.stream(), image.value(),
-                                kernels::ResizeCanvas{side, side, p.top, p.left}, legacy, y);
+    kernels::resize_zero_padded(t.stream(), image.value(), canvas, legacy, y);
     return Var(y);
   }
+  kernels::Pad2d p;
+  p.top = std::int32_t(canvas.top);
+  p.left = std::int32_t(canvas.left);
+  p.bottom = std::int32_t(side - h - canvas.top);
+  p.right = std::int32_t(side - w - canvas.left);
   Var square = h != w ? pad(t, image, p, 0.f) : image;
   if (side == size) return square;
   return resize(t, square, legacy, size, size);

@@ -144,10 +144,12 @@ class FaceLandmark68Net::DenseBlock : public Module {
   }
 
   // conv0's zero-padded input for x of shape x, for the previous block to
-  // write its output into; undefined for the first block (a dense conv
-  // reading the normalized image).
+  // write its output into (the first block: for the normalized image; see
+  // FaceLandmark68Net::relative_landmarks).
   k::Conv2dPadded padded_input(Tape& t, const Shape& x) const {
-    return conv0_ != nullptr ? conv0_->padded_input(t, x) : k::Conv2dPadded{};
+    return conv0_ != nullptr
+               ? conv0_->padded_input(t, x)
+               : k::conv2d_padded_input(t.stream(), x, first_filters_.shape(), first_params(x));
   }
 
   // Inference (infers()): the block with the running sum kept in the
@@ -155,12 +157,13 @@ class FaceLandmark68Net::DenseBlock : public Module {
   // pointwise conv adds the sum in its epilogue and writes the new one
   // straight into the next depthwise conv's padded input, which applies the
   // ReLU as it reads it; the last one applies the block's ReLU itself. So no
-  // padding, add or ReLU pass runs. x: plain (the first block) or xp, its
-  // padded copy (already ReLU'd); the result goes into `into` (the next
+  // padding, add or ReLU pass runs. x: plain (the first block only) or xp,
+  // its padded copy (already ReLU'd); the result goes into `into` (the next
   // block's padded input; then undefined) or is returned.
   Var forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& xp,
                         const k::Conv2dPadded* into) const {
-    const Shape o = output_shape(xp.defined() ? xp.shape : x.shape());
+    const Shape in = xp.defined() ? xp.shape : x.shape();
+    const Shape o = output_shape(in);
     const std::array<k::Conv2dPadded, 2> sums = {convs_[0]->padded_input(t, o),
                                                  convs_[0]->padded_input(t, o)};
     if (conv0_ != nullptr) {
@@ -168,8 +171,9 @@ class FaceLandmark68Net::DenseBlock : public Module {
     } else {
       k::Conv2dPaddedIo io;
       io.y = &sums[0];
-      k::conv2d_padded(t.stream(), &x.value(), first_filters_.value(), &first_bias_.value(),
-                       nullptr, first_params(x.shape()), io,
+      if (xp.defined()) io.x = &xp;
+      k::conv2d_padded(t.stream(), xp.defined() ? nullptr : &x.value(), first_filters_.value(),
+                       &first_bias_.value(), nullptr, first_params(in), io,
                        &first_packed_.get(t.stream(), first_filters_));
     }
     convs_[0]->run_padded(t, sums[0], false, k::Activation::none, 0.f, &sums[0], &sums[1]);
@@ -236,30 +240,44 @@ Var FaceLandmark68Net::forward(Tape& t, const Var& x112) const {
         "pad and resize face crops with to_landmark_input first");
   }
   Var x = channel_affine(t, x112, input_scale_, input_shift_);
-  // Inference (nothing needs a gradient): each block writes its output
-  // straight into the next one's padded input (see forward_inference).
-  bool infers = !t.needs_grad({&x112});
-  Shape xs = x.shape();
+  if (infers(t, x112.shape(), t.needs_grad({&x112}))) {
+    return forward_inference(t, x, k::Conv2dPadded{});
+  }
+  for (const DenseBlock* block : blocks_) x = block->forward(t, x);  // 112 → 56 → 28 → 14 → 7
+  return head(t, x);
+}
+
+bool FaceLandmark68Net::infers(const Tape& t, const Shape& x112, bool input_needs_grad) const {
+  bool infers = !input_needs_grad;
+  Shape xs = x112;
   for (const DenseBlock* block : blocks_) {
     infers = infers && block->infers(t, xs);
     xs = block->output_shape(xs);
   }
-  if (infers) {
-    k::Conv2dPadded xp;
-    xs = x.shape();
-    for (std::size_t i = 0; i < blocks_.size(); ++i) {
-      const Shape os = blocks_[i]->output_shape(xs);
-      const k::Conv2dPadded into =
-          i + 1 < blocks_.size() ? blocks_[i + 1]->padded_input(t, os) : k::Conv2dPadded{};
-      const Var y = blocks_[i]->forward_inference(t, x, xp, into.defined() ? &into : nullptr);
-      if (!into.defined()) x = y;
-      xp = into;
-      xs = os;
-    }
-  } else {
-    for (const DenseBlock* block : blocks_) x = block->forward(t, x);  // 112 → 56 → 28 → 14 → 7
+  return infers;
+}
+
+// Inference (infers()): each block writes its output straight into the next
+// one's padded input (DenseBlock::forward_inference). The normalized input:
+// x, or its padded copy x0p (then x is not read).
+Var FaceLandmark68Net::forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& x0p) const {
+  k::Conv2dPadded xp = x0p;
+  Shape xs = x0p.defined() ? x0p.shape : x.shape();
+  Var y;
+  for (std::size_t i = 0; i < blocks_.size(); ++i) {
+    const Shape os = blocks_[i]->output_shape(xs);
+    const k::Conv2dPadded into =
+        i + 1 < blocks_.size() ? blocks_[i + 1]->padded_input(t, os) : k::Conv2dPadded{};
+    y = blocks_[i]->forward_inference(t, x, xp, into.defined() ? &into : nullptr);
+    xp = into;
+    xs = os;
   }
-  x = avg_pool2d(t, x, k::pool_valid(7, 7, 2, 2));  // [N, 256, 1, 1]
+  return head(t, y);
+}
+
+// avgpool 7×7/2 valid → [N, 256] → fc.
+Var FaceLandmark68Net::head(Tape& t, const Var& x7) const {
+  Var x = avg_pool2d(t, x7, k::pool_valid(7, 7, 2, 2));  // [N, 256, 1, 1]
   x = reshape(t, x, Shape{x.shape()[0], x.shape()[1]});
   return linear(t, x, fc_weights_, fc_bias_);
 }
@@ -268,13 +286,32 @@ std::array<float, FaceLandmark68Net::kOutputs> FaceLandmark68Net::relative_landm
     Stream& stream, const Tensor& crop) const {
   Tape tape(stream, /*recording=*/false);
   // ReLU maps NaN to 0, so the network input is checked (as the detector
-  // does): its sum is finite iff every crop pixel the resize read is (for
-  // pixel values in any sane range); 112² values, not the whole crop.
-  const Var input = to_landmark_input(tape, Var(crop));
-  const Var total = sum_all(tape, input);
-  const Var raw = forward(tape, input);
-  stream.run();
-  if (!std::isfinite(total.value().download()[0])) {
+  // does): every value of the 112² input (the crop pixels the resize read)
+  // must be finite.
+  const Shape in{crop.shape()[0], 3, kLandmarkInputSize, kLandmarkInputSize};
+  Var raw;
+  float bad = 0;
+  if (infers(tape, in, false)) {
+    // One pass from the crop to conv0's padded input: pad to square, resize,
+    // normalize, flag non-finite values (no resize, normalize, padding or
+    // sum pass of its own).
+    const k::Conv2dPadded x0p = blocks_[0]->padded_input(tape, in);
+    const Tensor flag = Tensor::empty(crop.device(), Shape{1});
+    stream.fill(flag, 0.f);
+    k::resize_into_padded(stream, crop, square_canvas(crop.shape()[2], crop.shape()[3]),
+                          k::ResizeMode::bilinear_legacy, input_scale_.value(),
+                          input_shift_.value(), x0p, &flag);
+    raw = forward_inference(tape, Var(), x0p);
+    stream.run();
+    bad = flag.download()[0];
+  } else {
+    const Var input = to_landmark_input(tape, Var(crop));
+    const Var total = sum_all(tape, input);  // finite iff every value is (for sane ranges)
+    raw = forward(tape, input);
+    stream.run();
+    bad = std::isfinite(total.value().download()[0]) ? 0.f : 1.f;
+  }
+  if (bad != 0) {
     throw InvalidArgument("FaceLandmark68Net", "the face crop holds NaN or infinite pixels",
                           "pass RGB values in 0..255");
   }

@@ -9,6 +9,7 @@
 // taps touch them (the same tap function as the forward, so the two agree
 // exactly; no atomics, deterministic).
 #include "common.glsl"
+#include "resize_common.glsl"
 layout(local_size_x = 256) in;
 layout(constant_id = 0) const uint BACKWARD = 0u;
 // pc.mode == 3 (nearest) as a specialization constant for the forward's taps:
@@ -25,23 +26,9 @@ layout(push_constant) uniform Push {
 } pc;
 
 
-// Taps of output coordinate d on one axis: value = (1 - l)·in[i0] + l·in[i1].
+// The taps of output coordinate d on one axis (shaders/resize_common.glsl).
 void taps(int d, int n_in, float scale, out int i0, out int i1, out float l) {
-  precise float s;
-  if (pc.mode == 0u) {
-    s = (float(d) + 0.5) * scale - 0.5;
-  } else {
-    s = float(d) * scale;
-  }
-  s = clamp(s, 0.0, float(n_in - 1));
-  i0 = min(int(s), n_in - 1);
-  if (pc.mode == 3u) {
-    i1 = i0;
-    l = 0.0;
-  } else {
-    i1 = min(i0 + 1, n_in - 1);
-    l = s - float(i0);
-  }
+  resize_taps(pc.mode, d, n_in, scale, i0, i1, l);
 }
 
 // First output coordinate whose taps reach input i or beyond: start from the

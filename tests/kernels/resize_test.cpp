@@ -124,6 +124,104 @@ TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
   }
 }
 
+// The network-input pass: resize_zero_padded, the per-channel affine, the
+// result in the interior of padded planes whose border stays as it was; the
+// non-finite flag. Against the reference resize of the host-built canvas.
+TEST(ResizeKernels, IntoPaddedMatchesResizeThenAffine) {
+  Device& dev = test::device();
+  const std::uint32_t seed = 603;
+  std::mt19937 rng(seed);
+  auto uni = [&](int lo, int hi) {
+    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
+  };
+  struct IntoCase {
+    Case k;
+    kernels::ResizeCanvas canvas;
+    std::uint32_t hp, wp;
+    std::int32_t top, left;
+  };
+  // The landmark net's own (a 255×312 crop to 112², conv0's padded input),
+  // the vec4 store path, and random ones (most take the scalar stores).
+  std::vector<IntoCase> cases = {{{1, 3, 255, 312, 112, 112}, {312, 312, 29, 0}, 114, 120, 0, 4},
+                                 {{2, 3, 9, 6, 8, 8}, {9, 9, 0, 1}, 10, 16, 1, 4},
+                                 {{1, 1, 5, 5, 5, 7}, {5, 5, 0, 0}, 7, 9, 2, 1}};
+  for (int i = 0; i < 5; ++i) {
+    const Case k{uni(1, 2), uni(1, 3), uni(1, 30), uni(1, 30), uni(1, 30), uni(1, 30)};
+    const std::int64_t top = uni(0, 6), left = uni(0, 6);
+    const auto pt = std::int32_t(uni(0, 3)), pl = std::int32_t(uni(0, 5));
+    cases.push_back({k,
+                     {k.h + top + uni(0, 6), k.w + left + uni(0, 6), top, left},
+                     std::uint32_t(k.oh + pt + uni(0, 3)),
+                     std::uint32_t(k.ow + pl + uni(0, 5)),
+                     pt,
+                     pl});
+  }
+  for (const IntoCase& ic : cases) {
+    const Case& k = ic.k;
+    const auto [ch, cw, top, left] = ic.canvas;
+    for (ResizeMode m : kModes) {
+      SCOPED_TRACE(str(k, m) + " padded " + std::to_string(ic.hp) + "x" + std::to_string(ic.wp) +
+                   " at " + std::to_string(ic.top) + "," + std::to_string(ic.left) +
+                   " seed=" + std::to_string(seed));
+      const Shape xs{k.n, k.c, k.h, k.w};
+      auto xv = test::random_floats(std::size_t(xs.numel()), seed, 0.f, 255.f);
+      const auto sv = test::random_floats(std::size_t(k.c), seed + 1, 0.5f, 2.f);
+      const auto bv = test::random_floats(std::size_t(k.c), seed + 2);
+      std::vector<float> canvas(std::size_t(k.n * k.c * ch * cw), 0.f);
+      for (std::int64_t p = 0; p < k.n * k.c; ++p) {
+        for (std::int64_t r = 0; r < k.h; ++r) {
+          for (std::int64_t c = 0; c < k.w; ++c) {
+            canvas[std::size_t((p * ch + top + r) * cw + left + c)] =
+                xv[std::size_t((p * k.h + r) * k.w + c)];
+          }
+        }
+      }
+      const auto resized = ref::resize(canvas, k.n * k.c, ch, cw, k.oh, k.ow, m);
+      const std::size_t plane = std::size_t(ic.hp) * ic.wp;
+      std::vector<float> want(std::size_t(k.n * k.c) * plane, 7.f);  // the border: untouched
+      for (std::int64_t p = 0; p < k.n * k.c; ++p) {
+        const std::size_t c = std::size_t(p % k.c);
+        for (std::int64_t r = 0; r < k.oh; ++r) {
+          for (std::int64_t col = 0; col < k.ow; ++col) {
+            want[std::size_t(p) * plane + std::size_t(r + ic.top) * ic.wp +
+                 std::size_t(col + ic.left)] =
+                std::fma(resized[std::size_t((p * k.oh + r) * k.ow + col)], sv[c], bv[c]);
+          }
+        }
+      }
+      kernels::Conv2dPadded y;
+      y.data =
+          Tensor::from(dev, Shape{std::int64_t(want.size())}, std::vector<float>(want.size(), 7.f));
+      y.shape = Shape{k.n, k.c, k.oh, k.ow};
+      y.hp = ic.hp;
+      y.wp = ic.wp;
+      y.top = ic.top;
+      y.left = ic.left;
+      Tensor x = Tensor::from(dev, xs, xv),
+             flag = Tensor::from(dev, Shape{1}, std::vector<float>{0.f});
+      Tensor scale = Tensor::from(dev, Shape{k.c}, sv), shift = Tensor::from(dev, Shape{k.c}, bv);
+      Stream s(dev);
+      kernels::resize_into_padded(s, x, ic.canvas, m, scale, shift, y, &flag);
+      s.run();
+      const auto got = y.data.download();
+      for (std::size_t i = 0; i < want.size(); ++i) {
+        ASSERT_NEAR(got[i], want[i], 1e-5 * (1 + std::fabs(want[i]))) << "y at " << i;
+      }
+      EXPECT_EQ(flag.download()[0], 0.f);
+      // One NaN source pixel that an output reads sets the flag (the first
+      // pixel of the first plane: every mode's tap of output (0, 0) when
+      // the canvas starts with the source).
+      if (top == 0 && left == 0) {
+        xv[0] = std::nanf("");
+        Tensor xn = Tensor::from(dev, xs, xv);
+        kernels::resize_into_padded(s, xn, ic.canvas, m, scale, shift, y, &flag);
+        s.run();
+        EXPECT_EQ(flag.download()[0], 1.f);
+      }
+    }
+  }
+}
+
 TEST(ResizeKernels, ConventionsOnKnownValues) {
   // x = 0..7 on one row; downsample 8 -> 4 and upsample 4 -> 8.
   Device& dev = test::device();
@@ -200,6 +298,28 @@ TEST(ResizeKernels, BadInputsAreClearErrors) {
     FAIL();
   } catch (const InvalidArgument& e) {
     EXPECT_NE(std::string(e.what()).find("at (3, 0)"), std::string::npos) << e.what();
+  }
+  {  // resize_into_padded: padded planes too small for y, scale of the wrong size
+    kernels::Conv2dPadded y;
+    y.data = Tensor::empty(dev, {2 * 6 * 8});
+    y.shape = Shape{1, 2, 6, 6};
+    y.hp = 6;
+    y.wp = 8;
+    y.top = 1;
+    Tensor sc = Tensor::empty(dev, {2}), sc3 = Tensor::empty(dev, {3});
+    try {
+      kernels::resize_into_padded(s, x, {8, 8, 0, 0}, ResizeMode::bilinear_legacy, sc, sc, y);
+      FAIL();
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("do not hold y"), std::string::npos) << e.what();
+    }
+    y.top = 0;
+    try {
+      kernels::resize_into_padded(s, x, {8, 8, 0, 0}, ResizeMode::bilinear_legacy, sc3, sc, y);
+      FAIL();
+    } catch (const InvalidArgument& e) {
+      EXPECT_NE(std::string(e.what()).find("one value per channel"), std::string::npos) << e.what();
+    }
   }
   try {
     Tensor empty = Tensor::empty(dev, {1, 2, 0, 8});

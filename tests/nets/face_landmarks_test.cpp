@@ -76,7 +76,7 @@ TEST(FaceLandmark68Net, MatchesFaceApiGivenTheSameCrop) {
   const json index = test::parity_index();
   ASSERT_FALSE(index.is_null());
   Stream stream(test::device());
-  double max_raw = 0, max_input = 0, max_px = 0;
+  double max_raw = 0, max_input = 0, max_px = 0, max_fused = 0;
   int faces = 0;
   for (const json& image : index.at("images")) {
     for (const json& det : image.at("detections")) {
@@ -113,13 +113,25 @@ TEST(FaceLandmark68Net, MatchesFaceApiGivenTheSameCrop) {
         max_px = std::max(max_px, d);
         EXPECT_LE(d, 0.5) << "landmark coordinate " << i;
       }
+      // detect_landmarks goes from the crop to conv0's padded input in one
+      // pass (resize_into_padded): the same values as the separate resize,
+      // normalization and padding that forward() runs, so the same result.
+      const Var raw_composed = net().forward(tape, x112);
+      stream.run();
+      const auto rel = landmarks_relative_to_crop(raw_composed.value().download().data(), w, h);
+      for (std::size_t i = 0; i < 136; ++i) {
+        const float composed = rel[i] * float(i % 2 == 0 ? w : h);  // as detect_landmarks
+        max_fused = std::max(max_fused, std::abs(double(xy[i]) - composed));
+      }
       ++faces;
     }
   }
   EXPECT_GE(faces, 1);
+  EXPECT_EQ(max_fused, 0.0) << "detect_landmarks vs to_landmark_input + forward, crop px";
   std::printf(
-      "[ parity   ] %d faces: raw max |Δ| %.3g, 112² input max |Δ| %.3g, crop px max |Δ| %.3g\n",
-      faces, max_raw, max_input, max_px);
+      "[ parity   ] %d faces: raw max |Δ| %.3g, 112² input max |Δ| %.3g, crop px max |Δ| %.3g, "
+      "fused input pass vs composed %.3g\n",
+      faces, max_raw, max_input, max_px, max_fused);
 }
 
 // The inference path (running sums in padded tensors, ReLU on read, adds in
