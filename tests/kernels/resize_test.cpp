@@ -22,6 +22,25 @@ struct Case {
   std::int64_t n, c, h, w, oh, ow;
 };
 
+std::int64_t uniform_int(std::mt19937& rng, int lo, int hi) {
+  return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
+}
+
+// x's planes zero-padded to the canvas, on the host.
+std::vector<float> host_canvas(const std::vector<float>& xv, const Case& k,
+                               const kernels::ResizeCanvas& c) {
+  std::vector<float> canvas(std::size_t(k.n * k.c * c.height * c.width), 0.f);
+  for (std::int64_t p = 0; p < k.n * k.c; ++p) {
+    for (std::int64_t r = 0; r < k.h; ++r) {
+      for (std::int64_t col = 0; col < k.w; ++col) {
+        canvas[std::size_t((p * c.height + c.top + r) * c.width + c.left + col)] =
+            xv[std::size_t((p * k.h + r) * k.w + col)];
+      }
+    }
+  }
+  return canvas;
+}
+
 std::string str(const Case& k, ResizeMode m) {
   return "[" + std::to_string(k.n) + "," + std::to_string(k.c) + "," + std::to_string(k.h) + "," +
          std::to_string(k.w) + "] -> " + std::to_string(k.oh) + "x" + std::to_string(k.ow) +
@@ -33,9 +52,7 @@ std::vector<Case> cases(std::uint32_t seed) {
                          {2, 3, 8, 8, 4, 4},   {1, 3, 7, 9, 14, 18},  {1, 2, 17, 13, 5, 29},
                          {1, 1, 64, 3, 11, 7}, {1, 1, 10, 10, 23, 23}};
   std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) {
-    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
-  };
+  auto uni = [&](int lo, int hi) { return uniform_int(rng, lo, hi); };
   for (int i = 0; i < 5; ++i)
     v.push_back({uni(1, 2), uni(1, 4), uni(1, 40), uni(1, 40), uni(1, 40), uni(1, 40)});
   return v;
@@ -77,9 +94,7 @@ TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
   Device& dev = test::device();
   const std::uint32_t seed = 602;
   std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) {
-    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
-  };
+  auto uni = [&](int lo, int hi) { return uniform_int(rng, lo, hi); };
   struct PadCase {
     Case k;
     kernels::ResizeCanvas canvas;
@@ -102,15 +117,7 @@ TEST(ResizeKernels, ZeroPaddedMatchesPadThenResize) {
                    " seed=" + std::to_string(seed));
       const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
       const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
-      std::vector<float> canvas(std::size_t(k.n * k.c * ch * cw), 0.f);
-      for (std::int64_t p = 0; p < k.n * k.c; ++p) {
-        for (std::int64_t r = 0; r < k.h; ++r) {
-          for (std::int64_t c = 0; c < k.w; ++c) {
-            canvas[std::size_t((p * ch + top + r) * cw + left + c)] =
-                xv[std::size_t((p * k.h + r) * k.w + c)];
-          }
-        }
-      }
+      const std::vector<float> canvas = host_canvas(xv, k, canvas_at);
       Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
       Stream s(dev);
       kernels::resize_zero_padded(s, x, canvas_at, m, y);
@@ -131,9 +138,7 @@ TEST(ResizeKernels, IntoPaddedMatchesResizeThenAffine) {
   Device& dev = test::device();
   const std::uint32_t seed = 603;
   std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) {
-    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
-  };
+  auto uni = [&](int lo, int hi) { return uniform_int(rng, lo, hi); };
   struct IntoCase {
     Case k;
     kernels::ResizeCanvas canvas;
@@ -167,15 +172,7 @@ TEST(ResizeKernels, IntoPaddedMatchesResizeThenAffine) {
       auto xv = test::random_floats(std::size_t(xs.numel()), seed, 0.f, 255.f);
       const auto sv = test::random_floats(std::size_t(k.c), seed + 1, 0.5f, 2.f);
       const auto bv = test::random_floats(std::size_t(k.c), seed + 2);
-      std::vector<float> canvas(std::size_t(k.n * k.c * ch * cw), 0.f);
-      for (std::int64_t p = 0; p < k.n * k.c; ++p) {
-        for (std::int64_t r = 0; r < k.h; ++r) {
-          for (std::int64_t c = 0; c < k.w; ++c) {
-            canvas[std::size_t((p * ch + top + r) * cw + left + c)] =
-                xv[std::size_t((p * k.h + r) * k.w + c)];
-          }
-        }
-      }
+      const std::vector<float> canvas = host_canvas(xv, k, ic.canvas);
       const auto resized = ref::resize(canvas, k.n * k.c, ch, cw, k.oh, k.ow, m);
       const std::size_t plane = std::size_t(ic.hp) * ic.wp;
       std::vector<float> want(std::size_t(k.n * k.c) * plane, 7.f);  // the border: untouched
