@@ -476,10 +476,13 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
+      // y by quads of pixels (the shader's STORE4): blocks and rows 4-aligned.
+      const bool store4 = t.px % 4 == 0 && c.wout % 4 == 0 && c.yw % 4 == 0 && c.yleft % 4 == 0;
       stream.dispatch(kBlocked,
                       {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
                        texel(packed, VK_FORMAT_R32G32B32A32_SFLOAT), texel(b), out(yt), texel(r)},
-                      c, g, {c.kh, c.kw, c.sx, c.dx, t.px, t.cg, t.ry, wg, c.has_res});
+                      c, g,
+                      {c.kh, c.kw, c.sx, c.dx, t.px, t.cg, t.ry, wg, c.has_res, store4 ? 1u : 0u});
       return;
     }
     case Conv2dAlgo::depthwise: {

@@ -23,6 +23,9 @@ layout(constant_id = 3) const uint DX = 1u;
 layout(constant_id = 4) const uint PX = 8u;
 layout(constant_id = 5) const uint CG = 2u;  // vec4 channel groups per invocation (1 or 2)
 layout(constant_id = 6) const uint RY = 1u;  // output rows per invocation (RY > 1: sy = dy = 1)
+// y stored by quads of pixels, one vec4 each (llvmpipe runs stores lane by
+// lane, so 4× fewer store loops): PX, wout, yw and yleft multiples of 4.
+layout(constant_id = 9) const uint STORE4 = 0u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u;  // input columns one row needs
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
 const uint NR = RY + KH - 1u;       // input rows of one block when RY > 1
@@ -31,6 +34,7 @@ layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp],
 layout(binding = 1) uniform samplerBuffer packed;  // RGBA32F: [cout/8][cin][kh][kw][2]
 layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
+layout(std430, binding = 3) writeonly buffer Y4 { vec4 y4[]; };  // the same buffer (STORE4)
 
 void main() {
   const uint rblocks = (pc.hout + RY - 1u) / RY;
@@ -102,6 +106,20 @@ void main() {
         const uint oy = oy0 + q;
         if (oy >= pc.hout || oy + pc.ytop >= pc.yh) continue;
         const uint orow = (n * pc.cout + co) * hw + (oy + pc.ytop) * pc.yw + pc.yleft;
+        if (STORE4 != 0u) {
+          [[unroll]] for (uint p4 = 0u; p4 < PX; p4 += 4u) {
+            const uint ox = ox0 + p4;
+            if (ox < pc.wout && ox + pc.yleft < pc.yw) {
+              vec4 v;
+              [[unroll]] for (uint k = 0u; k < 4u; ++k) {
+                v[k] = conv_act(a[(g * RY + q) * PX + p4 + k][j] + b +
+                                conv_residual_at(n, co, oy, ox + k));
+              }
+              y4[(orow + ox) / 4u] = v;
+            }
+          }
+          continue;
+        }
         [[unroll]] for (uint p = 0u; p < PX; ++p) {
           const uint ox = ox0 + p;
           if (ox < pc.wout && ox + pc.yleft < pc.yw) {
