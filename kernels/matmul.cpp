@@ -27,12 +27,20 @@ void gemm(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& c, con
       sizeof(MatmulPush)};
   push.tiles_q = div_up(push.q_len, kTileN);
   push.has_bias = bias != nullptr ? 1u : 0u;
-  const std::uint64_t tiles = std::uint64_t(div_up(push.p_len, kTileM)) * push.tiles_q;
+  // The shader's TM and BVEC4: one row per tile for fewer than 4 rows; B as
+  // vec4 texels when its rows are contiguous and every tile's 8 columns are
+  // aligned and in range.
+  const std::uint32_t tm = push.p_len < kTileM ? 1 : kTileM;
+  const bool bvec4 = push.b_sq == 1 && push.b_sr % 4 == 0 && push.q_len % kTileN == 0;
+  const std::uint64_t tiles = std::uint64_t(div_up(push.p_len, tm)) * push.tiles_q;
   // Fewer lanes per group when there are few tiles: a linear layer on one
   // row (the landmark net's fc, 17 tiles) had all of them in one group.
   const std::uint32_t lanes = group_lanes(tiles, kGroup);
-  stream.dispatch(k, {texel(a), texel(b), texel(bias != nullptr ? *bias : b), out(c)}, push,
-                  groups_1d(div_up(tiles, lanes), stream.device().info()), {lanes});
+  stream.dispatch(k,
+                  {texel(a), texel(b, bvec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
+                   texel(bias != nullptr ? *bias : a), out(c)},
+                  push, groups_1d(div_up(tiles, lanes), stream.device().info()),
+                  {lanes, tm, bvec4 ? 1u : 0u});
 }
 
 struct Dims {

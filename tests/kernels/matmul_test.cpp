@@ -70,6 +70,16 @@ TEST(MatmulKernels, OddShapesMatchReference) {
   }
 }
 
+// The shader's variants: one row per tile (M < 4: a linear layer on one
+// input, the landmark net's fc 256 → 136), B through a vec4 view (N a
+// multiple of 8; the forward and dW), both, and neither.
+TEST(MatmulKernels, RowVectorsAndAlignedColumnsMatchReference) {
+  const Case cases[] = {{1, 256, 136}, {2, 33, 16}, {3, 8, 8}, {5, 40, 24},
+                        {1, 7, 9},     {4, 5, 32},  {9, 1, 8}};
+  std::uint32_t seed = 54;
+  for (const Case& c : cases) check_case(c, seed++);
+}
+
 TEST(MatmulKernels, LargeMatchesReference) {
   const auto t0 = std::chrono::steady_clock::now();
   check_case({256, 256, 256}, 52);
