@@ -506,10 +506,15 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
                  c.hout % t.ry == 0) {
         store4 = 2;
       }
-      stream.dispatch(
-          kDepthwise,
-          {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(weight), texel(b), out(yt), texel(r)}, c,
-          g, {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res, t.sh, store4});
+      // The weights as vec4 texels (the shader's WVEC4) when they fill whole texels.
+      const bool wvec4 = weight.numel() % 4 == 0;
+      stream.dispatch(kDepthwise,
+                      {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT),
+                       texel(weight, wvec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
+                       texel(b), out(yt), texel(r)},
+                      c, g,
+                      {c.kh, c.kw, c.sx, c.dx, t.px, t.ry, c.xrelu, wg, c.has_res, t.sh, store4,
+                       wvec4 ? 1u : 0u});
       return;
     }
   }

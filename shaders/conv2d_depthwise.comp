@@ -28,12 +28,18 @@ layout(constant_id = 9) const uint SH = 0u;
 // == 0), so its RY · PX outputs are contiguous: RY · PX, hout · wout
 // multiples of 4 and hout a multiple of RY (every block full).
 layout(constant_id = 10) const uint STORE4 = 0u;
+// The weights through an RGBA32F view (cout · KH · KW a multiple of 4): a
+// channel's KH·KW taps in (KH·KW + 6) / 4 texel fetches instead of KH·KW,
+// each tap picked from the texels by the channel's offset (selects).
+layout(constant_id = 11) const uint WVEC4 = 0u;
 const uint SEG = (PX - 1u) * SX + (KW - 1u) * DX + 1u + SH;
 const uint SEG4 = (SEG + 3u) / 4u;  // as vec4 texels (rows start 4-aligned: wp % 4 == 0)
 const uint NR = RY + KH - 1u;       // input rows of one block
+const uint NT = KH * KW;
+const uint NWT = (NT + 6u) / 4u;  // WVEC4: texels holding a channel's taps at any offset
 
 layout(binding = 0) uniform samplerBuffer xp;      // RGBA32F: [n, cin, hp, wp], zero-padded
-layout(binding = 1) uniform samplerBuffer weight;  // [cout, 1, kh, kw]
+layout(binding = 1) uniform samplerBuffer weight;  // [cout, 1, kh, kw]; RGBA32F view when WVEC4
 layout(binding = 2) uniform samplerBuffer bias;
 layout(std430, binding = 3) writeonly buffer Y { float y[]; };
 layout(std430, binding = 3) writeonly buffer Y4 { vec4 y4[]; };  // the same buffer (STORE4)
@@ -68,8 +74,19 @@ void main() {
       r[i * SEG4 + j] = load(xbase + int(i) * row_step + int(j));
     }
   }
-  float wv[KH * KW];
-  [[unroll]] for (uint t = 0u; t < KH * KW; ++t) wv[t] = texelFetch(weight, wbase + int(t)).r;
+  float wv[NT];
+  if (WVEC4 != 0u) {
+    vec4 wt[NWT];
+    [[unroll]] for (uint i = 0u; i < NWT; ++i) wt[i] = texelFetch(weight, wbase / 4 + int(i));
+    const uint o = uint(wbase) % 4u;
+    [[unroll]] for (uint t = 0u; t < NT; ++t) {
+      const float w0 = wt[t / 4u][t % 4u], w1 = wt[(t + 1u) / 4u][(t + 1u) % 4u];
+      const float w2 = wt[(t + 2u) / 4u][(t + 2u) % 4u], w3 = wt[(t + 3u) / 4u][(t + 3u) % 4u];
+      wv[t] = o == 0u ? w0 : (o == 1u ? w1 : (o == 2u ? w2 : w3));
+    }
+  } else {
+    [[unroll]] for (uint t = 0u; t < NT; ++t) wv[t] = texelFetch(weight, wbase + int(t)).r;
+  }
   [[unroll]] for (uint q = 0u; q < RY; ++q) {
     [[unroll]] for (uint p = 0u; p < PX; ++p) {
       float a = 0.0;
