@@ -60,15 +60,16 @@ class WeightReader {
 // splits: ties go up (the larger half is padded after the image).
 inline std::int64_t js_round_half(std::int64_t diff) { return (diff + 1) / 2; }
 
+// The square canvas face-api's padToSquare builds around an h × w image
+// (zeros split between both sides of the shorter axis, the larger half
+// after), for kernels::resize_zero_padded and resize_into_padded.
+kernels::ResizeCanvas square_canvas(std::int64_t h, std::int64_t w);
+
 // face-api's padToSquare(image, isCenterImage = true) (zeros, the larger half
 // after the image), then, unless the side already is `size`, resizeBilinear
 // (legacy) to size × size, for an NCHW batch. When nothing needs a gradient,
 // one pass that never builds the square (kernels::resize_zero_padded); on a
 // tape recording gradients for `image`, pad + resize.
-// The square canvas face-api's padToSquare builds around an h × w image
-// (zeros split between both sides of the shorter axis, the larger half
-// after), for kernels::resize_zero_padded and resize_into_padded.
-kernels::ResizeCanvas square_canvas(std::int64_t h, std::int64_t w);
 Var pad_to_square_and_resize(Tape& t, const Var& image, std::int64_t size);
 
 }  // namespace vkjr2::nets

@@ -3,8 +3,9 @@
 // A(p, r) = a[p·a_sp + r·a_sr] and B(r, q) = b[r·b_sr + q·b_sq], so one shader
 // serves Y = X·W, dX = dY·Wᵀ and dW = Xᵀ·dY. Register blocking: each
 // invocation computes a 4 × 8 tile (8 vec4 accumulators, 12 texel fetches per
-// 32 FMAs; TM, BVEC4 below), the r loop unrolled by 4; no shared memory (LAVAPIPE.md). Edge
-// tiles clamp their reads into range and skip the out-of-range writes.
+// 32 FMAs; TM and BVEC4 below), the r loop unrolled by 4; no shared memory
+// (LAVAPIPE.md). Edge tiles clamp their reads into range and skip the
+// out-of-range writes.
 #include "common.glsl"
 layout(local_size_x_id = 0) in;  // 8..64: fewer lanes per group on small products
 layout(binding = 0) uniform samplerBuffer a;
