@@ -195,15 +195,25 @@ Var TinyFaceDetector::forward(Tape& t, const Var& x) const {
             ", expected [N, 3, S, S] with S a positive multiple of 32 (RGB 0..255)",
         "pad and resize the image with TinyFaceDetector::preprocess first");
   }
-  Var y = channel_affine(t, x, input_scale_, input_shift_);
+  const Var y = channel_affine(t, x, input_scale_, input_shift_);
   // runMobilenet with isFirstLayerConv2d: leaky(convLayer(x, conv0, 'valid')).
+  return after_conv0(t, conv2d(t, y, conv0_filters_, conv0_bias_, conv0_params(), &conv0_packed_),
+                     t.needs_grad({&x}));
+}
+
+k::Conv2dParams TinyFaceDetector::conv0_params() {
   k::Conv2dParams p0;
   p0.activation = k::Activation::leaky_relu;
   p0.leaky_slope = kLeakySlope;
-  y = conv2d(t, y, conv0_filters_, conv0_bias_, p0, &conv0_packed_);
+  return p0;
+}
+
+// The network after conv0 (y: its output); input_needs_grad: whether the
+// image before it needs a gradient.
+Var TinyFaceDetector::after_conv0(Tape& t, Var y, bool input_needs_grad) const {
   // Inference (nothing needs a gradient): each max pool writes straight into
   // the next depthwise conv's zero-padded input (no padding pass).
-  bool infers = !t.needs_grad({&x, &conv0_filters_, &conv0_bias_});
+  bool infers = !input_needs_grad && !t.needs_grad({&conv0_filters_, &conv0_bias_});
   Shape s = y.shape();
   for (const SeparableConv3x3* c : convs_) {
     s = k::pool_output_shape(s, k::pool_same(2, 2, 2, 2, s[2], s[3]));
@@ -253,12 +263,39 @@ std::vector<FaceDetection> TinyFaceDetector::detect(Stream& stream, const Tensor
   const int h = int(image.shape()[2]), w = int(image.shape()[3]);
   Tape tape(stream, /*recording=*/false);
   // Max pools and fused ReLUs can drop a NaN, so the network input is checked:
-  // its sum is finite iff every pixel the resize read is.
-  const Var input(preprocess(stream, image, input_size));
-  const Var total = sum_all(tape, input);
-  const Var out = forward(tape, input);
-  stream.run();
-  if (!std::isfinite(total.value().download()[0])) {
+  // every value the network reads (the pixels the resize read) must be finite.
+  const Shape in{1, 3, input_size, input_size};
+  const k::Conv2dParams p0 = conv0_params();
+  const k::Conv2dPadded x0p = k::conv2d_padded_input(stream, in, conv0_filters_.shape(), p0);
+  Var out;
+  float bad = 0;
+  if (x0p.defined()) {
+    // One pass from the image to conv0's padded input: padToSquare (all the
+    // padding after the image), resize, normalize, flag non-finite values
+    // (no resize, sum, normalize or padding pass of its own).
+    const Tensor flag = Tensor::empty(image.device(), Shape{1});
+    stream.fill(flag, 0.f);
+    const std::int64_t side = std::max(h, w);
+    k::resize_into_padded(stream, image, k::ResizeCanvas{side, side, 0, 0},
+                          k::ResizeMode::bilinear_legacy, input_scale_.value(),
+                          input_shift_.value(), x0p, &flag);
+    const Tensor y0 =
+        Tensor::empty(image.device(), k::conv2d_output_shape(in, conv0_filters_.shape(), p0));
+    k::Conv2dPaddedIo io;
+    io.x = &x0p;
+    k::conv2d_padded(stream, nullptr, conv0_filters_.value(), &conv0_bias_.value(), &y0, p0, io,
+                     &conv0_packed_.get(stream, conv0_filters_));
+    out = after_conv0(tape, Var(y0), false);
+    stream.run();
+    bad = flag.download()[0];
+  } else {
+    const Var input(preprocess(stream, image, input_size));
+    const Var total = sum_all(tape, input);  // finite iff every value is (for sane ranges)
+    out = forward(tape, input);
+    stream.run();
+    bad = std::isfinite(total.value().download()[0]) ? 0.f : 1.f;
+  }
+  if (bad != 0) {
     throw InvalidArgument(op, "the image holds NaN or infinite pixels",
                           "pass RGB values in 0..255");
   }

@@ -111,6 +111,9 @@ class TinyFaceDetector : public Module {
                                     float score_threshold = 0.5f) const;
 
  private:
+  static kernels::Conv2dParams conv0_params();
+  Var after_conv0(Tape& t, Var y, bool input_needs_grad) const;
+
   Var conv0_filters_, conv0_bias_;
   std::vector<const SeparableConv3x3*> convs_;  // conv1 … conv5
   Var conv8_filters_, conv8_bias_;
