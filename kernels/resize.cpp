@@ -141,7 +141,7 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
   }
   if (oh < 1 || ow < 1 || y.top < 0 || y.left < 0 || y.top + oh > y.hp || y.left + ow > y.wp ||
       std::int64_t(planes) * y.hp * y.wp > y.data.numel() || x.numel() > INT32_MAX ||
-      y.data.numel() > INT32_MAX || planes > 65535) {
+      y.data.numel() > INT32_MAX || ys[0] > 65535) {
     throw InvalidArgument(op,
                           "padded planes " + std::to_string(y.hp) + "×" + std::to_string(y.wp) +
                               " (data " + y.data.shape().str() + ") do not hold y " + ys.str() +
@@ -182,7 +182,7 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
   const std::uint64_t items = std::uint64_t(oh) * blocks_x;
   const std::uint32_t lanes = group_lanes(items);
   Groups g = groups_1d(div_up(items, lanes), stream.device().info());
-  g.z = static_cast<std::uint32_t>(planes);
+  g.z = static_cast<std::uint32_t>(ys[0]);
   stream.dispatch(k,
                   {texel(x), texel(scale), texel(shift), vkjr2::out(y.data),
                    vkjr2::out(nonfinite != nullptr ? *nonfinite : y.data)},

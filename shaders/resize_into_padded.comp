@@ -5,8 +5,8 @@
 // input (planes hp × wp, the out_h × out_w output at (top, left); the border
 // is not written). FLAG: any NaN or infinite output sets flag[0] = 1 (the
 // caller zero-fills it). Grid: x = blocks of 4 pixels of one output row
-// (flattened with the rows), z = plane (image · channels + channel), so the
-// channel is uniform per workgroup.
+// (flattened with the rows), z = image; each invocation runs its 4 pixels
+// through every channel, the taps computed once.
 #include "common.glsl"
 #include "resize_common.glsl"
 layout(local_size_x_id = 3) in;                   // 8..64 (group_lanes)
@@ -34,48 +34,69 @@ layout(push_constant) uniform Push {
   uint top, left;         // where the output sits in them
 } pc;
 
-// The canvas at (yy, xx) of the plane starting at base: zero outside the source.
-float canvas_at(int base, int yy, int xx) {
-  const int sy = yy - pc.src_top, sx = xx - pc.src_left;
-  const bool in_src = sy >= 0 && sy < pc.src_h && sx >= 0 && sx < pc.src_w;
-  return in_src ? texelFetch(src, base + sy * pc.src_w + sx).r : 0.0;
-}
-
 void main() {
-  const uint plane = gl_WorkGroupID.z;
+  const uint n = gl_WorkGroupID.z;
   const uint blocks_x = (uint(pc.out_w) + 3u) / 4u;
   const uint item = linear_group() * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
   if (item >= uint(pc.out_h) * blocks_x) return;
   const uint oy = fast_div(item, pc.blocks_magic);
   const int ox0 = int(item - oy * blocks_x) * 4;
-  const int c = int(plane % pc.channels);
-  const float s = texelFetch(scale, c).r, b = texelFetch(shift, c).r;
-  const int base = int(plane) * pc.src_h * pc.src_w;
+  // The taps, shared by the channels: source offsets within a plane, and
+  // whether each lies in the source (the canvas is zero elsewhere).
   int y0, y1;
   float ly;
   resize_taps(pc.mode, int(oy), pc.in_h, pc.scale_h, y0, y1, ly);
-  vec4 v = vec4(0.0);
+  const int sy0 = y0 - pc.src_top, sy1 = y1 - pc.src_top;
+  const bool in_y0 = sy0 >= 0 && sy0 < pc.src_h, in_y1 = sy1 >= 0 && sy1 < pc.src_h;
+  int o00[4], o01[4], o10[4], o11[4];  // (row 0/1, column 0/1) of output k
+  bool v00[4], v01[4], v10[4], v11[4];
+  float lx[4];
   [[unroll]] for (int k = 0; k < 4; ++k) {
     int x0, x1;
-    float lx;
-    resize_taps(pc.mode, min(ox0 + k, pc.out_w - 1), pc.in_w, pc.scale_w, x0, x1, lx);
-    float r;
-    if (NEAREST != 0u) {
-      r = canvas_at(base, y0, x0);
-    } else {
-      const float top = (1.0 - lx) * canvas_at(base, y0, x0) + lx * canvas_at(base, y0, x1);
-      const float bot = (1.0 - lx) * canvas_at(base, y1, x0) + lx * canvas_at(base, y1, x1);
-      r = (1.0 - ly) * top + ly * bot;
-    }
-    v[k] = fma(r, s, b);  // as channel_affine computes it
+    resize_taps(pc.mode, min(ox0 + k, pc.out_w - 1), pc.in_w, pc.scale_w, x0, x1, lx[k]);
+    const int sx0 = x0 - pc.src_left, sx1 = x1 - pc.src_left;
+    const bool in_x0 = sx0 >= 0 && sx0 < pc.src_w, in_x1 = sx1 >= 0 && sx1 < pc.src_w;
+    v00[k] = in_y0 && in_x0;
+    v01[k] = in_y0 && in_x1;
+    v10[k] = in_y1 && in_x0;
+    v11[k] = in_y1 && in_x1;
+    o00[k] = v00[k] ? sy0 * pc.src_w + sx0 : 0;
+    o01[k] = v01[k] ? sy0 * pc.src_w + sx1 : 0;
+    o10[k] = v10[k] ? sy1 * pc.src_w + sx0 : 0;
+    o11[k] = v11[k] ? sy1 * pc.src_w + sx1 : 0;
   }
-  const uint row = (plane * pc.hp + oy + pc.top) * pc.wp + pc.left + uint(ox0);
-  if (STORE4 != 0u) {
-    dst4[row / 4u] = v;
-  } else {
+  const int src_plane = pc.src_h * pc.src_w;
+  bool bad = false;
+  for (uint c = 0u; c < pc.channels; ++c) {
+    const uint plane = n * pc.channels + c;
+    const int base = int(plane) * src_plane;
+    const float s = texelFetch(scale, int(c)).r, b = texelFetch(shift, int(c)).r;
+    vec4 v;
     [[unroll]] for (int k = 0; k < 4; ++k) {
-      if (ox0 + k < pc.out_w) dst[row + uint(k)] = v[k];
+      const float a00 = v00[k] ? texelFetch(src, base + o00[k]).r : 0.0;
+      float r;
+      if (NEAREST != 0u) {
+        r = a00;
+      } else {
+        const float a01 = v01[k] ? texelFetch(src, base + o01[k]).r : 0.0;
+        const float a10 = v10[k] ? texelFetch(src, base + o10[k]).r : 0.0;
+        const float a11 = v11[k] ? texelFetch(src, base + o11[k]).r : 0.0;
+        // As resize.comp computes it.
+        const float top = (1.0 - lx[k]) * a00 + lx[k] * a01;
+        const float bot = (1.0 - lx[k]) * a10 + lx[k] * a11;
+        r = (1.0 - ly) * top + ly * bot;
+      }
+      v[k] = fma(r, s, b);  // as channel_affine computes it
     }
+    const uint row = (plane * pc.hp + oy + pc.top) * pc.wp + pc.left + uint(ox0);
+    if (STORE4 != 0u) {
+      dst4[row / 4u] = v;
+    } else {
+      [[unroll]] for (int k = 0; k < 4; ++k) {
+        if (ox0 + k < pc.out_w) dst[row + uint(k)] = v[k];
+      }
+    }
+    bad = bad || any(isnan(v)) || any(isinf(v));
   }
-  if (FLAG != 0u && (any(isnan(v)) || any(isinf(v)))) flag[0] = 1.0;
+  if (FLAG != 0u && bad) flag[0] = 1.0;
 }
