@@ -139,9 +139,14 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
   if (x.shape()[0] != ys[0] || x.shape()[1] != ys[1]) {
     throw InvalidArgument(op, "x " + x.shape().str() + " and y " + ys.str() + " differ in N or C");
   }
+  if (x.numel() > INT32_MAX || y.data.numel() > INT32_MAX || ys[0] > 65535) {
+    throw InvalidArgument(op,
+                          "x " + x.shape().str() + " or y " + ys.str() +
+                              " is too large (2^31 elements, 65535 images at most)",
+                          "split the batch");
+  }
   if (oh < 1 || ow < 1 || y.top < 0 || y.left < 0 || y.top + oh > y.hp || y.left + ow > y.wp ||
-      std::int64_t(planes) * y.hp * y.wp > y.data.numel() || x.numel() > INT32_MAX ||
-      y.data.numel() > INT32_MAX || ys[0] > 65535) {
+      std::int64_t(planes) * y.hp * y.wp > y.data.numel()) {
     throw InvalidArgument(op,
                           "padded planes " + std::to_string(y.hp) + "×" + std::to_string(y.wp) +
                               " (data " + y.data.shape().str() + ") do not hold y " + ys.str() +
