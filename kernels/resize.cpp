@@ -146,7 +146,7 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
                           "split the batch");
   }
   if (oh < 1 || ow < 1 || y.top < 0 || y.left < 0 || y.top + oh > y.hp || y.left + ow > y.wp ||
-      std::int64_t(planes) * y.hp * y.wp > y.data.numel()) {
+      planes * y.hp * y.wp > y.data.numel()) {
     throw InvalidArgument(op,
                           "padded planes " + std::to_string(y.hp) + "×" + std::to_string(y.wp) +
                               " (data " + y.data.shape().str() + ") do not hold y " + ys.str() +

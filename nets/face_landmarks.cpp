@@ -296,11 +296,9 @@ std::array<float, FaceLandmark68Net::kOutputs> FaceLandmark68Net::relative_landm
     // normalize, flag non-finite values (no resize, normalize, padding or
     // sum pass of its own).
     const k::Conv2dPadded x0p = blocks_[0]->padded_input(tape, in);
-    const Tensor flag = Tensor::empty(crop.device(), Shape{1});
-    stream.fill(flag, 0.f);
-    k::resize_into_padded(stream, crop, square_canvas(crop.shape()[2], crop.shape()[3]),
-                          k::ResizeMode::bilinear_legacy, input_scale_.value(),
-                          input_shift_.value(), x0p, &flag);
+    const Tensor flag =
+        resize_normalized_into(stream, crop, square_canvas(crop.shape()[2], crop.shape()[3]),
+                               input_scale_, input_shift_, x0p);
     raw = forward_inference(tape, Var(), x0p);
     stream.run();
     bad = flag.download()[0];

@@ -273,12 +273,9 @@ std::vector<FaceDetection> TinyFaceDetector::detect(Stream& stream, const Tensor
     // One pass from the image to conv0's padded input: padToSquare (all the
     // padding after the image), resize, normalize, flag non-finite values
     // (no resize, sum, normalize or padding pass of its own).
-    const Tensor flag = Tensor::empty(image.device(), Shape{1});
-    stream.fill(flag, 0.f);
     const std::int64_t side = std::max(h, w);
-    k::resize_into_padded(stream, image, k::ResizeCanvas{side, side, 0, 0},
-                          k::ResizeMode::bilinear_legacy, input_scale_.value(),
-                          input_shift_.value(), x0p, &flag);
+    const Tensor flag = resize_normalized_into(stream, image, k::ResizeCanvas{side, side, 0, 0},
+                                               input_scale_, input_shift_, x0p);
     const Tensor y0 =
         Tensor::empty(image.device(), k::conv2d_output_shape(in, conv0_filters_.shape(), p0));
     k::Conv2dPaddedIo io;
