@@ -23,6 +23,7 @@
 
 #include "bench/harness.hpp"
 #include "bench/kernels_cases.hpp"
+#include "checks.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 
@@ -48,6 +49,8 @@ std::vector<float> test_scene(int channels, int h, int w) {
 }
 
 void run_bench_sim(const BenchSimArgs& a) {
+  // Benchmark results are replaced; the folder must be there before minutes of work.
+  if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
   const Device device = open_device(a.device);
   const auto blur = sim::load_shipped_blur_models(device);
   std::vector<bench::Result> rows;
@@ -190,6 +193,7 @@ struct BenchKernelsArgs {
 };
 
 void run_bench_kernels(const BenchKernelsArgs& a) {
+  if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
   const Device device = open_device(a.device);
   const bench::KernelsRun run = bench::run_kernel_cases(device, a.only, a.full, "bench kernels");
   bench::print_kernels_table(device, run);
@@ -239,17 +243,19 @@ void add_bench(CLI::App& app) {
       ->default_val("moderate")
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
   sim_cmd->add_option("--sizes", a->sizes, "Square frame sizes")
-      ->default_val(std::vector<int>{256, 512, 1024});
+      ->default_val(std::vector<int>{256, 512, 1024})
+      ->check(integer_range(16, 2048));
   sim_cmd->add_option("--frames", a->frames, "Timed frames per size (median)")
       ->default_val(3)
-      ->check(CLI::Range(1, 1000));
+      ->check(integer_range(1, 1000));
   sim_cmd
       ->add_option("--wave-step", a->wave_step_px,
                    "Source spacing of the measured wave-optics run (px)")
       ->default_val(16)
-      ->check(CLI::Range(2.0, 256.0));
+      ->check(finite_range(2.0, 256.0));
   sim_cmd->add_option("--wave-grid", a->wave_grid, "Wave-optics propagation grid")
-      ->default_val(256);
+      ->default_val(256)
+      ->check(fft_length(64, 4096));
   sim_cmd->add_option("--device", a->device,
                       "Vulkan device index or name substring (else VKJR2_DEVICE)");
   sim_cmd->add_option("--json-file", a->json_path, "Also write the results as JSON here");

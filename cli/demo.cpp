@@ -21,6 +21,8 @@
 #include <string>
 #include <vector>
 
+#include "checks.hpp"
+#include "cleanup.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 #include "media.hpp"
@@ -110,9 +112,9 @@ void banner(cv::Mat& img, const std::string& text) {
               1, cv::LINE_AA);
 }
 
-void write_png_mat(const fs::path& path, const cv::Mat& m, bool force) {
+void write_image_mat(const fs::path& path, const cv::Mat& m, bool force) {
   Image img = to_image(m);
-  write_png(path, img, force);
+  write_image(path, img, force);
 }
 
 void write_text(const fs::path& path, const std::string& text, bool force) {
@@ -143,15 +145,20 @@ struct StrengthStats {
 void run_demo(const DemoArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   const fs::path out(a.out);
+  check_output_folder(out, "--out");
   std::error_code ec;
-  fs::create_directories(out, ec);
-  if (ec)
-    throw Error("demo", "cannot create " + out.string() + ": " + ec.message(),
-                "pass a writable --out folder");
-  if (!fs::exists(a.video))
-    throw Error("demo", a.video + " is missing", "install Debian's opencv-doc (scripts/setup)");
+  if (!fs::exists(a.video, ec)) {
+    throw UsageError(
+        "--video", a.video + " is missing",
+        a.video == kVideo ? "install Debian's opencv-doc (scripts/setup)" : "check the path");
+  }
+  check_input_file(a.video, "--video");
+  // The video is read last: a file that cannot be decoded fails here, before
+  // minutes of work and before --out is made.
+  read_video(a.video, 1, 1, [](std::size_t, const Image&) {});
   for (const char* f : {"montage.png", "vtest_strong.avi", "results.json", "report.md"})
-    check_writable(out / f, a.force);
+    if (fs::exists(out / f, ec)) check_output_file(out / f, a.force, "--out");
+  create_output_folder(out, "--out");
   const fs::path demo_dir = nets::face_api_model_dir().parent_path() / "demo";
   std::vector<Photo> photos;
   for (int i = 1; i <= a.photos; ++i) {
@@ -269,7 +276,7 @@ void run_demo(const DemoArgs& a) {
   }
   cv::Mat montage;
   cv::vconcat(rows, montage);
-  write_png_mat(out / "montage.png", montage, a.force);
+  write_image_mat(out / "montage.png", montage, a.force);
 
   // A degraded video: Debian's vtest.avi through strong turbulence.
   const fs::path video_out = out / "vtest_strong.avi";
@@ -375,18 +382,18 @@ void add_demo(CLI::App& app) {
   cmd->add_option("--out", a->out, "Output folder")->default_val("out/demo");
   cmd->add_option("--frames", a->frames, "Frames of each short video")
       ->default_val(2)
-      ->check(CLI::Range(1, 1000));
+      ->check(integer_range(1, 1000));
   cmd->add_option("--photos", a->photos, "How many of the 6 sample photos to use")
       ->default_val(6)
-      ->check(CLI::Range(1, 6));
+      ->check(integer_range(1, 6));
   cmd->add_option("--video-frames", a->video_frames, "Frames of vtest.avi to degrade")
       ->default_val(16)
-      ->check(CLI::Range(1, 100000));
+      ->check(integer_range(1, 100000));
   cmd->add_option("--width", a->width, "Width the photos are resized to (px)")
       ->default_val(640)
-      ->check(CLI::Range(64, 4096));
+      ->check(integer_range(64, 4096));
   cmd->add_option("--video", a->video, "The video to degrade")->default_val(kVideo);
-  cmd->add_option("--seed", a->seed, "Seed of the simulations")->default_val(1);
+  add_seed_option(cmd, a->seed, "Seed of the simulations");
   cmd->add_option("--device", a->device,
                   "Vulkan device index or name substring (else VKJR2_DEVICE)");
   cmd->add_flag("--json", a->json_out, "Print results.json instead of the table");

@@ -13,6 +13,8 @@
 #include <optional>
 #include <string>
 
+#include "checks.hpp"
+#include "cleanup.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 #include "media.hpp"
@@ -29,8 +31,22 @@ struct FaceArgs {
   int input_size = 416;
   float score_threshold = 0.5f;
   std::string align = "face-api";
-  bool aligned = false;  // inputs are already face crops
+  bool aligned = false;    // inputs are already face crops
+  bool fail_fast = false;  // batches: stop at the first input that fails
 };
+
+// --input-size: the detector's grid is 32 pixels.
+CLI::Validator multiple_of_32() {
+  return CLI::Validator(
+      [](std::string& text) -> std::string {
+        const std::string in_range = integer_range(32, 4096)(text);
+        if (!in_range.empty()) return in_range;
+        if (std::stoll(text) % 32 != 0)
+          return text + " is not a multiple of 32 (use e.g. 320, 416 or 608)";
+        return {};
+      },
+      "a multiple of 32 in 32..4096");
+}
 
 void add_common(CLI::App* cmd, FaceArgs& a, bool with_aligned) {
   cmd->add_option("--device", a.device,
@@ -38,10 +54,10 @@ void add_common(CLI::App* cmd, FaceArgs& a, bool with_aligned) {
   cmd->add_flag("--json", a.json, "Print JSON instead of text");
   cmd->add_option("--input-size", a.input_size, "Detector input size, a multiple of 32")
       ->default_val(416)
-      ->check(CLI::Range(32, 4096));
+      ->check(multiple_of_32());
   cmd->add_option("--min-score", a.score_threshold, "Detector score threshold in (0, 1)")
       ->default_val(0.5f)
-      ->check(CLI::Range(0.0001f, 0.9999f));
+      ->check(finite_range(0.0001, 0.9999));
   if (with_aligned) {
     cmd->add_option("--align", a.align,
                     "face-api: face-api's axis-aligned dlib box (matches face-api's descriptors); "
@@ -55,10 +71,6 @@ void add_common(CLI::App* cmd, FaceArgs& a, bool with_aligned) {
 }
 
 jr2::FaceOptions options_of(const FaceArgs& a, bool descriptors) {
-  if (a.input_size % 32 != 0) {
-    throw InvalidArgument("--input-size", std::to_string(a.input_size) + " is not a multiple of 32",
-                          "use e.g. 320, 416 or 608");
-  }
   jr2::FaceOptions o;
   o.input_size = a.input_size;
   o.score_threshold = a.score_threshold;
@@ -145,10 +157,17 @@ void print_faces_text(const std::string& what, const std::vector<jr2::Face>& fac
 
 void run_detect(const DetectArgs& a) {
   const fs::path input = a.input;
+  check_input_file(input, "input");
   const bool video = is_video_path(input);
+  if (!video && !is_image_path(input)) {
+    throw UsageError("input", a.input + " is neither an image nor a video (by its extension)",
+                     "pass .png/.jpg/.tif/.bmp/.webp/.npy or .avi/.mp4/...");
+  }
   if (!a.draw.empty()) {
-    if (video) throw InvalidArgument("--draw", "drawing is for single images", "pass an image");
-    check_writable(a.draw, a.force);
+    if (video) throw UsageError("--draw", "drawing is for single images", "pass an image");
+    check_output_file(a.draw, a.force, "--draw");
+    check_extension(a.draw, kImageOutputExtensions, "--draw");
+    watch_output_folder(fs::path(a.draw).parent_path());
   }
   const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
@@ -189,7 +208,7 @@ void run_detect(const DetectArgs& a) {
   }
   if (!a.draw.empty()) {
     draw_faces(img, faces);
-    write_png(a.draw, img, a.force);
+    write_image(a.draw, img, a.force);
     if (!a.json) std::printf("wrote %s\n", a.draw.c_str());
   }
 }
@@ -234,26 +253,52 @@ struct EmbedArgs : FaceArgs {
   std::vector<std::string> inputs;
 };
 
+// Reports an input of a batch that failed (or rethrows it with --fail-fast).
+void skip_failed(const FaceArgs& a, const std::string& input, const Error& e, json& failed) {
+  if (a.fail_fast) throw;  // the Error being handled
+  log_warn("skipped " + input + ": " + describe_error(e));
+  failed.push_back({{"input", input}, {"error", describe_error(e)}});
+}
+
+// Exit code 1 after a batch in which some inputs failed.
+void fail_if_any(const json& failed, std::size_t total, const std::string& what) {
+  if (failed.empty()) return;
+  throw Error("batch",
+              std::to_string(failed.size()) + " of " + std::to_string(total) + " " + what +
+                  " failed (each is named above); the others were used",
+              "fix or remove them and run again (--fail-fast stops at the first)");
+}
+
 void run_embed(const EmbedArgs& a) {
-  const Device device = open_device(a.device);
-  const jr2::FaceAnalyzer analyzer(device);
-  Stream stream(device);
-  json all = json::array();
-  std::size_t without = 0;
   // A folder stands for its images, sorted by name.
   std::vector<std::string> inputs;
+  std::error_code ec;
   for (const std::string& in : a.inputs) {
-    if (!fs::is_directory(in)) {
+    if (!fs::is_directory(in, ec)) {
+      check_input_file(in, "inputs");
       inputs.push_back(in);
       continue;
     }
+    check_input_folder(in, "inputs");
     const auto images = list_images(in);
     if (images.empty())
-      throw Error("embed", in + " holds no image", "put .png/.jpg/.tif/.npy files in it");
+      throw UsageError("inputs", in + " holds no image", "put .png/.jpg/.tif/.npy files in it");
     for (const fs::path& p : images) inputs.push_back(p.string());
   }
+  const Device device = open_device(a.device);
+  const jr2::FaceAnalyzer analyzer(device);
+  Stream stream(device);
+  json all = json::array(), failed = json::array();
+  std::size_t without = 0;
   for (const std::string& in : inputs) {
-    const Described d = describe(analyzer, stream, device, in, a);
+    Described d;
+    try {
+      d = describe(analyzer, stream, device, in, a);
+    } catch (const Error& e) {
+      if (inputs.size() == 1) throw;
+      skip_failed(a, in, e, failed);
+      continue;
+    }
     if (d.faces.empty()) {
       ++without;
       log_warn("no face found in " + in);
@@ -276,6 +321,11 @@ void run_embed(const EmbedArgs& a) {
     }
   }
   if (a.json) std::cout << all.dump(2) << "\n";
+  if (!failed.empty() && !a.json) {
+    std::printf("embed: %zu of %zu inputs described, %zu failed\n", inputs.size() - failed.size(),
+                inputs.size(), failed.size());
+  }
+  fail_if_any(failed, inputs.size(), "inputs");
   if (without == inputs.size()) {
     throw Error("embed", "no face found in any input",
                 "lower --min-score or pass --aligned for face crops");
@@ -290,6 +340,8 @@ struct VerifyArgs : FaceArgs {
 };
 
 void run_verify(const VerifyArgs& a) {
+  check_input_file(a.a_path, "a");
+  check_input_file(a.b_path, "b");
   const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
@@ -322,10 +374,8 @@ struct IdentifyArgs : FaceArgs {
 
 void run_identify(const IdentifyArgs& a) {
   const fs::path root = a.gallery;
-  if (!fs::is_directory(root)) {
-    throw Error("identify", "gallery " + a.gallery + " is not a folder",
-                "pass --gallery DIR with one sub-folder of images per identity");
-  }
+  check_input_file(a.probe, "probe");
+  check_input_folder(root, "--gallery");
   const Device device = open_device(a.device);
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
@@ -335,9 +385,18 @@ void run_identify(const IdentifyArgs& a) {
     if (e.is_directory()) identities.push_back(e.path());
   }
   std::sort(identities.begin(), identities.end());
+  json failed = json::array();
+  std::size_t gallery_images = 0;
   for (const fs::path& dir : identities) {
     for (const fs::path& img : list_images(dir)) {
-      const Described d = describe(analyzer, stream, device, img, a);
+      ++gallery_images;
+      Described d;
+      try {
+        d = describe(analyzer, stream, device, img, a);
+      } catch (const Error& e) {
+        skip_failed(a, img.string(), e, failed);
+        continue;
+      }
       if (d.faces.empty()) {
         log_warn("no face in gallery image " + img.string() + " (skipped)");
         continue;
@@ -360,9 +419,13 @@ void run_identify(const IdentifyArgs& a) {
                    {"distance", ranked[i].distance},
                    {"source", ranked[i].source}});
     }
-    std::cout
-        << json{{"probe", a.probe}, {"gallery_images", gallery.size()}, {"candidates", c}}.dump(2)
-        << "\n";
+    std::cout << json{{"probe", a.probe},
+                      {"gallery_images", gallery.size()},
+                      {"candidates", c},
+                      {"failed", failed}}
+                     .dump(2)
+              << "\n";
+    fail_if_any(failed, gallery_images, "gallery images");
     return;
   }
   std::printf("%s against %zu gallery images:\n", a.probe.c_str(), gallery.size());
@@ -371,6 +434,10 @@ void run_identify(const IdentifyArgs& a) {
                 ranked[i].distance,
                 ranked[i].distance < jr2::kFaceApiMatchThreshold ? "  (match)" : "");
   }
+  if (!failed.empty()) {
+    std::printf("identify: %zu of %zu gallery images failed\n", failed.size(), gallery_images);
+  }
+  fail_if_any(failed, gallery_images, "gallery images");
 }
 
 }  // namespace
@@ -379,17 +446,18 @@ void add_faces(CLI::App& app) {
   {
     auto a = std::make_shared<DetectArgs>();
     CLI::App* cmd = app.add_subcommand("detect", "Detect faces and their 68 landmarks");
-    cmd->add_option("input", a->input, "Image (PNG, JPEG, TIFF, .npy) or video file")
-        ->required()
-        ->check(CLI::ExistingFile);
+    cmd->add_option("input", a->input, "Image (PNG, JPEG, TIFF, .npy) or video file")->required();
     add_common(cmd, *a, false);
-    cmd->add_option("--draw", a->draw, "Write the image with boxes and landmarks drawn (PNG)");
+    cmd->add_option("--draw", a->draw,
+                    "Write the image with boxes and landmarks drawn; the format follows the "
+                    "extension (.png, .jpg, .tif, .bmp)");
     cmd->add_flag("--force", a->force, "Replace an existing --draw file");
     cmd->add_option("--every", a->every, "Videos: use every N-th frame")
         ->default_val(1)
-        ->check(CLI::PositiveNumber);
+        ->check(integer_range(1, 1000000));
     cmd->add_option("--max-frames", a->max_frames, "Videos: stop after this many frames (0 = all)")
-        ->default_val(0);
+        ->default_val(0)
+        ->check(integer_range(0, 100000000));
     cmd->footer(
         "Examples:\n  vkjr2 detect photo.jpg --draw boxes.png\n  vkjr2 detect vtest.avi --every 10 "
         "--max-frames 5 --json");
@@ -400,24 +468,27 @@ void add_faces(CLI::App& app) {
     CLI::App* cmd = app.add_subcommand("embed", "Compute a 128-d descriptor per detected face");
     cmd->add_option("inputs", a->inputs,
                     "Images (PNG, JPEG, TIFF, .npy float32 HWC RGB 0..255) or folders of them")
-        ->required()
-        ->check(CLI::ExistingPath);
+        ->required();
     add_common(cmd, *a, true);
+    cmd->add_flag("--fail-fast", a->fail_fast,
+                  "Stop at the first input that fails (default: report it, go on, exit 1 at "
+                  "the end)");
     cmd->footer(
         "Examples:\n  vkjr2 embed a.jpg b.png --json\n  vkjr2 embed chip150.npy --aligned\n"
         "Images without a face are reported on stderr; the command fails only when no input "
-        "has a face.");
+        "has a face.\nAn input that cannot be read is reported and skipped; the exit code is 1 "
+        "when any was.");
     cmd->callback([a] { run_embed(*a); });
   }
   {
     auto a = std::make_shared<VerifyArgs>();
     CLI::App* cmd = app.add_subcommand("verify", "Are two images the same person? (1:1)");
-    cmd->add_option("a", a->a_path, "First image")->required()->check(CLI::ExistingFile);
-    cmd->add_option("b", a->b_path, "Second image")->required()->check(CLI::ExistingFile);
+    cmd->add_option("a", a->a_path, "First image")->required();
+    cmd->add_option("b", a->b_path, "Second image")->required();
     add_common(cmd, *a, true);
     cmd->add_option("--threshold", a->threshold, "Same person below this descriptor distance")
         ->default_val(jr2::kFaceApiMatchThreshold)
-        ->check(CLI::PositiveNumber);
+        ->check(positive_up_to(100));
     cmd->footer(
         "Uses the highest-scoring face of each image.\nExample:\n  vkjr2 verify a.jpg b.jpg");
     cmd->callback([a] { run_verify(*a); });
@@ -425,13 +496,16 @@ void add_faces(CLI::App& app) {
   {
     auto a = std::make_shared<IdentifyArgs>();
     CLI::App* cmd = app.add_subcommand("identify", "Rank gallery identities for a probe (1:N)");
-    cmd->add_option("probe", a->probe, "Probe image")->required()->check(CLI::ExistingFile);
+    cmd->add_option("probe", a->probe, "Probe image")->required();
     cmd->add_option("--gallery", a->gallery, "Folder with one sub-folder of images per identity")
         ->required();
     cmd->add_option("--top", a->top, "Candidates to list")
         ->default_val(5)
-        ->check(CLI::PositiveNumber);
+        ->check(integer_range(1, 1000000));
     add_common(cmd, *a, true);
+    cmd->add_flag("--fail-fast", a->fail_fast,
+                  "Stop at the first gallery image that fails (default: report it, go on, exit 1 "
+                  "at the end)");
     cmd->footer("Example:\n  vkjr2 identify probe.jpg --gallery people/ --top 3");
     cmd->callback([a] { run_identify(*a); });
   }

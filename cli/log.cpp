@@ -4,6 +4,10 @@
 
 #include <atomic>
 #include <cstdio>
+#include <cstdlib>
+#include <vector>
+
+#include "checks.hpp"
 
 namespace vkjr2::cli {
 namespace {
@@ -11,6 +15,7 @@ namespace {
 constexpr const char* kNames[] = {"error", "warn", "info", "debug"};
 constexpr const char* kLabels[] = {"error", "warning", "info", "debug"};
 std::atomic<int> g_level{int(LogLevel::warn)};
+std::atomic<bool> g_verbose{false};
 
 }  // namespace
 
@@ -27,6 +32,13 @@ void set_log_level(LogLevel level) { g_level = int(level); }
 
 LogLevel log_level() { return LogLevel(g_level.load()); }
 
+void set_verbose(bool on) {
+  g_verbose = on;
+  if (on && log_level() < LogLevel::info) set_log_level(LogLevel::info);
+}
+
+bool verbose() { return g_verbose.load(); }
+
 void log(LogLevel level, const std::string& message) {
   if (int(level) > g_level.load()) return;
   std::fprintf(stderr, "vkjr2: %s: %s\n", kLabels[int(level)], message.c_str());
@@ -35,6 +47,21 @@ void log(LogLevel level, const std::string& message) {
 Device open_device(const std::string& selector) {
   DeviceOptions options;
   options.selector = selector;
+  const char* env = std::getenv("VKJR2_DEVICE");
+  const std::string wanted = !selector.empty() ? selector : env != nullptr ? env : "";
+  if (!wanted.empty()) {
+    // A selector that names no device is a usage error, found before the
+    // device is made.
+    const std::vector<DeviceInfo> infos = list_devices();
+    try {
+      (void)select_device(infos, wanted);
+    } catch (const NoDeviceError&) {
+      throw;
+    } catch (const InvalidArgument& e) {
+      throw UsageError(selector.empty() ? "VKJR2_DEVICE" : "--device", e.problem(),
+                       "pass one of the listed indices or a part of a name (`vkjr2 devices`)");
+    }
+  }
   Device device(options);
   const DeviceInfo& i = device.info();
   log_info("device " + std::to_string(i.index) + ": " + i.name + " (" + i.type_name() + ")");

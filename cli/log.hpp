@@ -21,6 +21,11 @@ std::vector<std::string> log_level_names();
 void set_log_level(LogLevel level);
 LogLevel log_level();
 
+// --verbose: info messages, and the decoders' own (libpng, libjpeg, FFmpeg,
+// OpenCV's log) on stderr; without it they are kept off the terminal.
+void set_verbose(bool on);
+bool verbose();
+
 // One line "vkjr2: <level>: message" on stderr when level ≤ log_level().
 void log(LogLevel level, const std::string& message);
 inline void log_warn(const std::string& m) { log(LogLevel::warn, m); }

@@ -2,10 +2,12 @@
 // and optics options, and images as NCHW planes.
 #pragma once
 
+#include <vkjr2/sim/blur_model.hpp>
 #include <vkjr2/sim/params.hpp>
 
 #include <CLI/CLI.hpp>
 
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -22,10 +24,19 @@ struct PathArgs {
 
 // --preset, --config, --cn2, --r0, --range, --wavelengths, --grey.
 void add_path_options(CLI::App* cmd, PathArgs& a);
-// The parameters for one height × width image (RGB, or grey with --grey).
+// The parameters for one height × width image (RGB, or grey with --grey),
+// validated and derived (sim::derive) so that a mistake is found before any
+// work: UsageError naming the option the user typed (--r0, --cn2, --range,
+// --wavelengths, --config) for parameters that cannot be simulated; Error
+// for a config file that cannot be read.
 sim::Params params_for_image(const PathArgs& a, int height, int width);
 // --preset/--config with --range, --cn2, --r0 and --wavelengths applied (image shape untouched).
 sim::Params params_from_args(const PathArgs& a);
+// Throws Error (exit code 1: a model is missing, the options are fine), with
+// the command that makes one, when a channel has no blur model made for its
+// sampling (a --config with its own optics, another wavelength).
+void check_blur_models(const PathArgs& a, const sim::Params& params,
+                       const std::vector<std::shared_ptr<const sim::BlurModel>>& models);
 // "rgb" → sim::kRgbWavelengthsM; "610,525,465" → metres. Throws InvalidArgument naming the option.
 std::vector<double> parse_wavelengths_nm(const std::string& text, const std::string& option);
 

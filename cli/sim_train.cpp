@@ -12,6 +12,8 @@
 #include <optional>
 #include <string>
 
+#include "checks.hpp"
+#include "cleanup.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 #include "media.hpp"
@@ -39,8 +41,11 @@ struct TrainArgs {
 };
 
 void run_sim_train(TrainArgs& a) {
-  check_writable(a.output, a.force);
+  check_output_file(a.output, a.force, "OUT");
+  check_extension(a.output, {".safetensors"}, "OUT");
+  if (!a.config.empty()) check_input_file(a.config, "--config");
   sim::Params params = a.config.empty() ? sim::preset(a.preset) : sim::load_params(a.config);
+  watch_output_folder(std::filesystem::path(a.output).parent_path());
   if (a.wavelength_nm) {
     sim::set_wavelengths(params, {*a.wavelength_nm * 1e-9});
     params.image.channels = 1;
@@ -121,37 +126,39 @@ void add_sim_train(CLI::App& app) {
   CLI::Option* wavelength =
       cmd->add_option("--wavelength", a->wavelength_nm,
                       "Train for this wavelength in nm instead of the optics' (same D, f, pitch)")
-          ->check(CLI::Range(100.0, 20000.0));
+          ->check(finite_range(100.0, 20000.0));
   cmd->add_option("--channel", a->artifact.channel,
                   "Train for this channel's wavelength of a --config with one per channel")
       ->default_val(0)
-      ->check(CLI::Range(0, 3))
+      ->check(integer_range(0, 3))
       ->excludes(wavelength);
   auto& b = a->artifact.basis;
   auto& t = a->artifact.train;
   cmd->add_option("--size", b.size, "PSF kernel size S (odd)")
       ->default_val(b.size)
-      ->check(CLI::Range(3, 65));
+      ->check(odd_number(3, 65));
   cmd->add_option("--count", b.count, "Basis kernels K (the mean PSF + K-1 components)")
       ->default_val(b.count)
-      ->check(CLI::Range(2, 400));
+      ->check(integer_range(2, 400));
   cmd->add_option("--psf-samples", b.samples, "Wave-optics PSFs for the basis")
-      ->default_val(b.samples);
+      ->default_val(b.samples)
+      ->check(integer_range(16, 10000000));
   cmd->add_option("--train-samples", t.train_samples, "PSF/weight pairs for training")
-      ->default_val(t.train_samples);
+      ->default_val(t.train_samples)
+      ->check(integer_range(16, 10000000));
   cmd->add_option("--steps", t.steps, "Training steps")
       ->default_val(t.steps)
-      ->check(CLI::Range(1, 10000000));
+      ->check(integer_range(1, 10000000));
   cmd->add_option("--hidden", a->artifact.hidden, "Hidden width of the P2S network")
-      ->default_val(a->artifact.hidden);
-  cmd->add_option("--seed", t.seed, "Seed of the training draws (the basis uses --basis-seed)")
-      ->default_val(t.seed);
-  cmd->add_option("--basis-seed", b.seed, "Seed of the basis PSFs")->default_val(b.seed);
+      ->default_val(a->artifact.hidden)
+      ->check(integer_range(1, 4096));
+  add_seed_option(cmd, t.seed, "Seed of the training draws (the basis uses --basis-seed)", t.seed);
+  add_seed_option(cmd, b.seed, "Seed of the basis PSFs", b.seed, "--basis-seed");
   cmd->add_option("--residual-modes", b.residual_j_max,
                   "The PSFs also carry Noll modes J+1..this (not network inputs), so the model "
                   "predicts the mean PSF given a_4..a_J, residual blur included; <= J: none")
       ->default_val(b.residual_j_max)
-      ->check(CLI::Range(4, sim::kMaxZernikeModes));
+      ->check(integer_range(4, sim::kMaxZernikeModes));
   cmd->add_option("--device", a->device,
                   "Vulkan device index or name substring (else VKJR2_DEVICE)");
   cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
@@ -159,8 +166,6 @@ void add_sim_train(CLI::App& app) {
   cmd->add_flag("--force", a->force, "Replace an existing output file");
   cmd->callback([a] {
     a->artifact.train.residual_j_max = a->artifact.basis.residual_j_max;
-    if (a->artifact.basis.size % 2 == 0)
-      throw InvalidArgument("--size", "must be odd (the PSF has a centre pixel)");
     run_sim_train(*a);
   });
 }

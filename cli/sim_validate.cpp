@@ -12,6 +12,7 @@
 #include <string>
 #include <vector>
 
+#include "checks.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 #include "progress.hpp"
@@ -102,18 +103,18 @@ void add_sim_validate(CLI::App& app) {
       ->check(CLI::IsMember({"weak", "moderate", "strong"}));
   cmd->add_option("--fields", a->config.fields, "Independent 96x128 fields")
       ->default_val(600)
-      ->check(CLI::Range(10, 1000000));
+      ->check(integer_range(10, 1000000));
   cmd->add_option("--screens", a->config.screens, "Phase screens (128²)")
       ->default_val(64)
-      ->check(CLI::Range(2, 100000));
+      ->check(integer_range(2, 100000));
   cmd->add_option("--psf-frames", a->config.psf_frames, "Point-source realizations per simulator")
       ->default_val(96)
-      ->check(CLI::Range(2, 100000));
-  cmd->add_option("--seed", a->config.seed, "Seed")->default_val(2026);
+      ->check(integer_range(2, 100000));
+  add_seed_option(cmd, a->config.seed, "Seed", 2026);
   cmd->add_option("--wave-screen", a->config.wave_screen_size,
                   "Side of the wave reference's phase screens (an FFT length >= its grid, 128)")
       ->default_val(a->config.wave_screen_size)
-      ->check(CLI::Range(128, 4096));
+      ->check(integer_range(128, 4096));
   cmd->add_flag("--quick", a->quick, "Small sizes (as in the test suite)");
   cmd->add_flag("--no-psf", a->no_psf, "Skip the fast-vs-wave PSF comparison");
   cmd->add_option("--also-at", a->also_at,

@@ -11,6 +11,8 @@
 #include <memory>
 #include <string>
 
+#include "checks.hpp"
+#include "cleanup.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 #include "media.hpp"
@@ -29,15 +31,17 @@ struct WaveArgs {
 
 void run_wave(WaveArgs& a) {
   const std::filesystem::path in(a.input), out(a.output);
+  check_input_file(in, "IN");
   if (!is_image_path(in)) {
-    throw InvalidArgument(
-        "wave", a.input + " is not an image (by its extension)",
-        "the wave-optics reference images single frames: pass .png/.jpg/.tif/.npy");
+    throw UsageError("IN", a.input + " is not an image (by its extension)",
+                     "the wave-optics reference images single frames: pass .png/.jpg/.tif/.npy");
   }
-  if (out.extension() != ".png") throw InvalidArgument("wave", a.output + ": write a .png image");
-  check_writable(out, a.force);
+  check_output_file(out, a.force, "OUT");
+  check_extension(out, kImageOutputExtensions, "OUT");
+  (void)params_for_image(a.path, 64, 64);  // the options, before the image is read
   const Image img = read_image(in);
   const sim::Params p = params_for_image(a.path, int(img.shape[0]), int(img.shape[1]));
+  watch_output_folder(out.parent_path());
   a.config.wave.fft = a.fft == "fftw" ? sim::FftBackend::fftw : sim::FftBackend::device;
   const Device device = open_device(a.device);
   sim::WaveImageReport rep;
@@ -48,7 +52,7 @@ void run_wave(WaveArgs& a) {
   bar.done();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  write_png(out, from_planes(y, p.image.channels, img.shape[0], img.shape[1]), a.force);
+  write_image(out, from_planes(y, p.image.channels, img.shape[0], img.shape[1]), a.force);
   const sim::WavePlan& plan = rep.plans.front();
   for (const auto& w : plan.warnings) log_warn(w);
   if (a.json_out) {
@@ -94,23 +98,24 @@ void add_wave(CLI::App& app) {
       "  vkjr2 wave face.png out.png --grid 128 --screens 5 --json\n"
       "  vkjr2 wave face.png out.png --fft fftw");
   cmd->add_option("IN", a->input, "Input image (.png, .jpg, .tif, .npy)")->required();
-  cmd->add_option("OUT", a->output, "Output .png image")->required();
+  cmd->add_option("OUT", a->output, "Output image (.png, .jpg, .tif, .bmp: by its extension)")
+      ->required();
   add_path_options(cmd, a->path);
-  cmd->add_option("--seed", a->config.wave.seed, "Seed of the phase screens")->default_val(1);
+  add_seed_option(cmd, a->config.wave.seed, "Seed of the phase screens");
   cmd->add_option("--grid", a->config.wave.grid,
                   "Propagation grid N (an FFT length: 2^a 3^b 5^c 7^d)")
       ->default_val(256)
-      ->check(CLI::Range(16, 4096));
+      ->check(fft_length(16, 4096));
   cmd->add_option("--screens", a->config.wave.screens,
                   "Phase screens (at least; more if a slab's Rytov is high)")
       ->default_val(10)
-      ->check(CLI::Range(1, 200));
+      ->check(integer_range(1, 200));
   cmd->add_option("--source-step", a->config.source_step_px, "Point-source spacing in pixels")
       ->default_val(16)
-      ->check(CLI::Range(1.0, 4096.0));
+      ->check(finite_range(1.0, 4096.0));
   cmd->add_option("--psf-size", a->config.psf_size, "PSF size in pixels (odd; 0 = from the seeing)")
       ->default_val(0)
-      ->check(CLI::Range(0, 65));
+      ->check(odd_number(3, 65, true));
   cmd->add_option("--fft", a->fft,
                   "Where the FFTs run: device (with the rest of the reference) or fftw (all on "
                   "the CPU)")

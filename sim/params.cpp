@@ -281,7 +281,7 @@ Derived derive(const Params& p) {
                             "D/r0 = " + num(ch.d_over_r0) + where + " exceeds " + num(kDOverR0Max) +
                                 ": the " + std::to_string(p.zernike_modes) +
                                 "-mode Zernike model cannot represent this phase",
-                            "reduce the aperture, the range or Cn² (or raise r0_m)");
+                            "reduce the aperture, the range or Cn² (or raise r0)");
     if (ch.rytov > kRytovMax)
       throw InvalidArgument(kOp,
                             "Rytov number σ_χ² = " + num(ch.rytov) + where + " exceeds " +

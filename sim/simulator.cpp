@@ -30,6 +30,14 @@ constexpr double kNyquistTolerance = 0.02;
 
 Simulator::~Simulator() = default;
 
+std::shared_ptr<const BlurModel> blur_model_for(
+    const std::vector<std::shared_ptr<const BlurModel>>& models, double nyquist) {
+  for (const auto& m : models) {
+    if (m && std::fabs(nyquist / m->nyquist() - 1) <= kNyquistTolerance) return m;
+  }
+  return nullptr;
+}
+
 Simulator::Simulator(const Device& device, const Params& params,
                      std::shared_ptr<const BlurModel> blur, const SimOptions& options)
     : Simulator(device, params,
@@ -50,16 +58,11 @@ Simulator::Simulator(const Device& device, const Params& params,
     const double lambda0 = derived_.channels[0].wavelength_m;
     for (int c = 0; c < params.image.channels; ++c) {
       const ChannelDerived& cd = derived_.channels[std::size_t(c)];
-      std::shared_ptr<const BlurModel> model;
-      std::string offered;
-      for (const auto& m : blur_models) {
-        if (std::fabs(cd.nyquist / m->nyquist() - 1) <= kNyquistTolerance) {
-          model = m;
-          break;
-        }
-        offered += (offered.empty() ? "" : ", ") + std::to_string(m->nyquist());
-      }
+      const std::shared_ptr<const BlurModel> model = blur_model_for(blur_models, cd.nyquist);
       if (!model) {
+        std::string offered;
+        for (const auto& m : blur_models)
+          offered += (offered.empty() ? "" : ", ") + std::to_string(m->nyquist());
         throw InvalidArgument(
             kOp,
             "channel " + std::to_string(c) + " (λ = " + std::to_string(cd.wavelength_m * 1e9) +

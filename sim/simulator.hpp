@@ -38,6 +38,11 @@ class BlurModel {
                        float coefficient_scale = 1.f) const = 0;
 };
 
+// The first of `models` made for a sampling within 2 % of `nyquist` (the
+// mismatch a basis tolerates), or null: what the Simulator picks per channel.
+std::shared_ptr<const BlurModel> blur_model_for(
+    const std::vector<std::shared_ptr<const BlurModel>>& models, double nyquist);
+
 struct SensorNoise {
   double photons_per_unit = 0;  // shot noise: photons for a pixel value of 1 (0 = none)
   double read_std = 0;          // read noise σ in pixel-value units

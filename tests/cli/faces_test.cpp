@@ -45,9 +45,9 @@ TEST(CliFaces, DetectFindsTheFacesOfSample1AndDraws) {
   EXPECT_EQ(j["faces"][0]["landmarks"].size(), 68u);
   EXPECT_TRUE(fs::exists(drawn));
   EXPECT_FALSE(cv::imread(drawn.string()).empty()) << "the drawn PNG does not decode";
-  // An existing output is not replaced without --force.
+  // An existing output is not replaced without --force (a usage error, exit 2).
   const auto again = run_cli("detect " + sample_photo(1).string() + " --draw " + drawn.string());
-  EXPECT_EQ(again.code, 1) << again.output;
+  EXPECT_EQ(again.code, 2) << again.output;
   EXPECT_NE(again.output.find("--force"), std::string::npos) << again.output;
 }
 
@@ -97,7 +97,7 @@ TEST(CliFaces, EmbedAlignedChipAndRejectCorruptImages) {
   EXPECT_EQ(fj[1]["faces"][0]["descriptor"], j[0]["faces"][0]["descriptor"]);
   fs::create_directories(tmp.path / "empty");
   const auto empty = run_cli("embed " + (tmp.path / "empty").string());
-  EXPECT_EQ(empty.code, 1) << empty.output;
+  EXPECT_EQ(empty.code, 2) << empty.output;
   EXPECT_NE(empty.output.find("holds no image"), std::string::npos) << empty.output;
 
   const fs::path bad = tmp.path / "broken.jpg";

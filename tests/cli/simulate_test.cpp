@@ -67,9 +67,9 @@ TEST(CliSimulate, ImageToImageIsTurbulentAndSeeded) {
   EXPECT_EQ(mean_abs_diff(ia, ib), 0.0);   // same seed, same image
   EXPECT_GT(mean_abs_diff(ia, ic), 1.0);   // another seed, another turbulence
   EXPECT_GT(mean_abs_diff(ia, src), 5.0);  // visibly degraded
-  // An existing output is not replaced without --force.
+  // An existing output is not replaced without --force (a usage error, exit 2).
   const auto again = run_cli("simulate " + in.string() + " " + a.string() + " --quiet");
-  EXPECT_EQ(again.code, 1);
+  EXPECT_EQ(again.code, 2);
   EXPECT_NE(again.output.find("--force"), std::string::npos) << again.output;
 }
 
@@ -110,8 +110,9 @@ TEST(CliSimulate, BadInputsAreOneLineErrors) {
   TempDir tmp("simulate_bad");
   const fs::path in = write_scene(tmp.path, 32, 32);
   const fs::path out = tmp.path / "out.png";
+  // Exit code 2 for a mistake on the command line, 1 for a file that cannot be used.
   auto r = run_cli("simulate " + (tmp.path / "missing.png").string() + " " + out.string());
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("does not exist"), std::string::npos) << r.output;
   {
     std::ofstream bad(tmp.path / "corrupt.avi");
@@ -122,10 +123,10 @@ TEST(CliSimulate, BadInputsAreOneLineErrors) {
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_FALSE(fs::exists(tmp.path / "o.avi"));
   r = run_cli("simulate " + in.string() + " " + out.string() + " --cn2 -1");
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.output.find("Cn"), std::string::npos) << r.output;
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("--cn2"), std::string::npos) << r.output;
   r = run_cli("simulate " + in.string() + " " + out.string() + " --frames 3");
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("video output"), std::string::npos) << r.output;
   r = run_cli("simulate " + in.string() + " " + out.string() + " --blur-model " + in.string());
   EXPECT_EQ(r.code, 1);
@@ -169,7 +170,7 @@ TEST(CliSimulate, FolderToFolder) {
   EXPECT_GT(mean_abs_diff(a, b), 1.0);
   // Without --force nothing is overwritten, and the refusal comes before any work.
   r = run_cli("simulate " + in.string() + " " + out.string() + " --quiet");
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("already exists"), std::string::npos) << r.output;
   // Default log level: no info lines.
   r = run_cli("simulate " + in.string() + " " + out.string() + " --quiet --force");
@@ -177,11 +178,11 @@ TEST(CliSimulate, FolderToFolder) {
   EXPECT_EQ(r.output.find("vkjr2: info:"), std::string::npos) << r.output;
   // A folder IN needs a folder OUT; an empty folder is an error.
   r = run_cli("simulate " + in.string() + " " + (out / "a.png").string() + " --quiet");
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.output.find("must be one"), std::string::npos) << r.output;
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("not a folder"), std::string::npos) << r.output;
   fs::create_directories(tmp.path / "empty");
   r = run_cli("simulate " + (tmp.path / "empty").string() + " " + out.string() + " --quiet");
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("holds no image or video"), std::string::npos) << r.output;
   r = run_cli("devices --log-level loud");
   EXPECT_EQ(r.code, 2) << r.output;
@@ -282,11 +283,11 @@ TEST(CliDemo, SmallStudyWritesEveryOutput) {
   // Existing outputs are kept without --force; a missing video is a clear error.
   r = run_cli("demo --out " + out.string() +
               " --photos 1 --frames 1 --video-frames 1 --width 320 --quiet");
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("--force"), std::string::npos) << r.output;
   r = run_cli("demo --out " + out.string() + " --video /nonexistent.avi --quiet");
-  EXPECT_EQ(r.code, 1);
-  EXPECT_NE(r.output.find("opencv-doc"), std::string::npos) << r.output;
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.output.find("/nonexistent.avi is missing"), std::string::npos) << r.output;
 }
 
 TEST(CliWave, ImagesASceneThroughTheReference) {
@@ -314,11 +315,12 @@ TEST(CliWave, ImagesASceneThroughTheReference) {
   const cv::Mat c = cv::imread(out_fftw.string());
   ASSERT_FALSE(c.empty());
   EXPECT_LT(mean_abs_diff(b, c), 0.05);
+  std::ofstream(tmp.path / "clip.avi") << "a video";
   r = run_cli("wave " + (tmp.path / "clip.avi").string() + " " + out.string() + " --force");
-  EXPECT_EQ(r.code, 1);
+  EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("single frames"), std::string::npos) << r.output;
   r = run_cli("wave " + in.string() + " " + (tmp.path / "o.png").string() + " --grid 61");
-  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_FALSE(fs::exists(tmp.path / "o.png"));
 }
 

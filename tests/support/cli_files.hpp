@@ -27,11 +27,20 @@ struct TempDir {
   TempDir& operator=(const TempDir&) = delete;
 };
 
-// The first JSON value in a command's output (null when there is none).
+// The first JSON value in a command's output (null when there is none);
+// the command's own message lines ("vkjr2: warning: ...") are skipped.
 inline nlohmann::json parse_json(const std::string& out) {
-  const auto start = out.find_first_of("[{");
+  std::string text;
+  std::size_t at = 0;
+  while (at < out.size()) {
+    std::size_t end = out.find('\n', at);
+    end = end == std::string::npos ? out.size() : end + 1;
+    if (out.compare(at, 7, "vkjr2: ") != 0) text.append(out, at, end - at);
+    at = end;
+  }
+  const auto start = text.find_first_of("[{");
   if (start == std::string::npos) return nlohmann::json();
-  return nlohmann::json::parse(out.substr(start), nullptr, false);
+  return nlohmann::json::parse(text.substr(start), nullptr, false);
 }
 
 }  // namespace vkjr2::test

@@ -1,0 +1,57 @@
+// What a failed command may print and leave: one "vkjr2: error:" line (and
+// "vkjr2: warning:" lines), no decoder noise, no temporary file.
+#pragma once
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <sstream>
+#include <string>
+#include <vector>
+
+namespace vkjr2::test {
+
+// The lines of a command's output.
+inline std::vector<std::string> lines_of(const std::string& output) {
+  std::vector<std::string> out;
+  std::istringstream in(output);
+  for (std::string line; std::getline(in, line);)
+    if (!line.empty()) out.push_back(line);
+  return out;
+}
+
+// How many lines start with "vkjr2: error:".
+inline int error_lines(const std::string& output) {
+  int n = 0;
+  for (const std::string& l : lines_of(output)) n += l.starts_with("vkjr2: error:") ? 1 : 0;
+  return n;
+}
+
+// Every line is the command's own ("vkjr2: error:" / "vkjr2: warning:").
+inline bool only_own_lines(const std::string& output) {
+  for (const std::string& l : lines_of(output))
+    if (!l.starts_with("vkjr2: error:") && !l.starts_with("vkjr2: warning:")) return false;
+  return true;
+}
+
+// Files under `dir` (recursively) whose name holds ".tmp": a temporary output.
+inline std::vector<std::filesystem::path> temporaries(const std::filesystem::path& dir) {
+  std::vector<std::filesystem::path> out;
+  std::error_code ec;
+  for (auto it = std::filesystem::recursive_directory_iterator(dir, ec);
+       it != std::filesystem::recursive_directory_iterator(); it.increment(ec)) {
+    if (it->path().filename().string().find(".tmp") != std::string::npos) out.push_back(it->path());
+  }
+  return out;
+}
+
+// The first `fraction` of a file's bytes, written to `to`.
+inline void write_truncated(const std::filesystem::path& from, const std::filesystem::path& to,
+                            double fraction) {
+  std::ifstream src(from, std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(src)), std::istreambuf_iterator<char>());
+  std::ofstream(to, std::ios::binary)
+      << bytes.substr(0, static_cast<std::size_t>(double(bytes.size()) * fraction));
+}
+
+}  // namespace vkjr2::test
