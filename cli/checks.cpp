@@ -154,7 +154,8 @@ CLI::Option* add_seed(CLI::App* cmd, Seed& seed, const std::string& help, Seed d
               return e.problem() + " (" + e.fix() + ")";
             }
           },
-          "SEED"));
+          ""))
+      ->type_name("UINT");
 }
 
 }  // namespace

@@ -73,7 +73,8 @@ int run(int argc, char** argv) {
   app.footer(
       "Environment: VKJR2_DEVICE (index or name substring), VKJR2_VALIDATION=1 (Khronos "
       "validation layer), VKJR2_PROFILE=1 (per-kernel GPU times), VKJR2_CACHE_DIR (face models),\n"
-      "VKJR2_ARTIFACT_DIR (trained simulator artifacts), VKJR2_LOG_LEVEL (as --log-level).\n"
+      "VKJR2_FACE_API_DIR (face-api's model/ folder, instead of the cache's), VKJR2_ARTIFACT_DIR "
+      "(trained simulator artifacts),\nVKJR2_LOG_LEVEL (as --log-level).\n"
       "Exit codes: 0 success; 1 a failure during the work (unreadable or corrupt input, device "
       "error);\n2 a usage error (bad option or value, missing input, output exists without "
       "--force); 3 no Vulkan device;\n130/143 interrupted by SIGINT/SIGTERM (temporary outputs "

@@ -34,6 +34,18 @@ inline bool only_own_lines(const std::string& output) {
   return true;
 }
 
+// A line the image or video decoders print themselves (libpng, libjpeg,
+// FFmpeg's "[mjpeg @ 0x...]", OpenCV's log) rather than through vkjr2.
+inline bool has_decoder_noise(const std::string& output) {
+  for (const std::string& l : lines_of(output)) {
+    if (l.starts_with("vkjr2: ")) continue;
+    for (const char* noise : {"libpng", "[ WARN", "[ERROR", "Premature end", "Corrupt JPEG", " @ 0x",
+                              "JPEG datastream", "Invalid data"})
+      if (l.find(noise) != std::string::npos) return true;
+  }
+  return false;
+}
+
 // Files under `dir` (recursively) whose name holds ".tmp": a temporary output.
 inline std::vector<std::filesystem::path> temporaries(const std::filesystem::path& dir) {
   std::vector<std::filesystem::path> out;
