@@ -133,6 +133,18 @@ TEST(CliSimulate, BadInputsAreOneLineErrors) {
   EXPECT_FALSE(fs::exists(out));
   r = run_cli("simulate " + in.string() + " " + out.string() + " --preset hurricane");
   EXPECT_EQ(r.code, 2);
+  // A config with its own pixel pitch samples the PSF where no shipped model
+  // does: the error gives the sim-train command that makes one, and how to pass it.
+  std::ofstream(tmp.path / "pitch.yaml") << "preset: moderate\noptics:\n  pixel_pitch_m: 5.0e-6\n";
+  r = run_cli("simulate " + in.string() + " " + out.string() + " --config " +
+              (tmp.path / "pitch.yaml").string());
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("`vkjr2 sim-train p2s_ch0.safetensors --config " +
+                          (tmp.path / "pitch.yaml").string() + " --channel 0`"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("--blur-model"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
   r = run_cli("simulate --help");
   EXPECT_EQ(r.code, 0);
   EXPECT_NE(r.output.find("Examples"), std::string::npos);

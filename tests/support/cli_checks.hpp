@@ -39,8 +39,8 @@ inline bool only_own_lines(const std::string& output) {
 inline bool has_decoder_noise(const std::string& output) {
   for (const std::string& l : lines_of(output)) {
     if (l.starts_with("vkjr2: ")) continue;
-    for (const char* noise : {"libpng", "[ WARN", "[ERROR", "Premature end", "Corrupt JPEG", " @ 0x",
-                              "JPEG datastream", "Invalid data"})
+    for (const char* noise : {"libpng", "[ WARN", "[ERROR", "Premature end", "Corrupt JPEG",
+                              " @ 0x", "JPEG datastream", "Invalid data"})
       if (l.find(noise) != std::string::npos) return true;
   }
   return false;
