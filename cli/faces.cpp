@@ -39,7 +39,7 @@ struct FaceArgs {
 CLI::Validator multiple_of_32() {
   return CLI::Validator(
       [](std::string& text) -> std::string {
-        const std::string in_range = integer_range(32, 4096)(text);
+        std::string in_range = integer_range(32, 4096)(text);
         if (!in_range.empty()) return in_range;
         if (std::stoll(text) % 32 != 0)
           return text + " is not a multiple of 32 (use e.g. 320, 416 or 608)";

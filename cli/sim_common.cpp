@@ -169,8 +169,13 @@ void check_blur_models(const PathArgs& a, const sim::Params& params,
                     " nm) samples the PSF at Nyquist ratio " + readable(nyquist) +
                     ", and no blur model was made for that sampling (the ones given: " + offered +
                     ")",
-                "make one for these optics with `vkjr2 sim-train " + made + " " + how +
-                    "` and pass it with --blur-model " + made + " (or simulate with --no-blur)");
+                std::string("make one for these optics with `vkjr2 sim-train ")
+                    .append(made)
+                    .append(" ")
+                    .append(how)
+                    .append("` and pass it with --blur-model ")
+                    .append(made)
+                    .append(" (or simulate with --no-blur)"));
   }
 }
 

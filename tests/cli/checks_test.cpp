@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "support/cli_checks.hpp"
@@ -26,7 +27,7 @@ using vkjr2::test::temporaries;
 fs::path write_png(const fs::path& dir, int h, int w, const std::string& name = "in.png") {
   cv::Mat img(h, w, CV_8UC3);
   cv::randu(img, cv::Scalar::all(0), cv::Scalar::all(255));
-  const fs::path p = dir / name;
+  fs::path p = dir / name;
   cv::imwrite(p.string(), img);
   return p;
 }
@@ -47,18 +48,23 @@ TEST(CliChecks, FloatOptionsRefuseNanAndInfinity) {
   TempDir tmp("checks_nan");
   const fs::path in = write_png(tmp.path, 16, 16);
   const std::string sim = "simulate " + in.string() + " " + (tmp.path / "o.png").string();
-  for (const char* v : {"nan", "inf", "-inf", "NaN"}) {
-    const std::string value = v;
-    expect_usage_error("verify " + in.string() + " " + in.string() + " --threshold " + value,
-                       "--threshold");
-    expect_usage_error(sim + " --photons " + value, "--photons");
-    expect_usage_error(sim + " --read-noise " + value, "--read-noise");
-    expect_usage_error(sim + " --tilt-rho " + value, "--tilt-rho");
-    expect_usage_error(sim + " --r0 " + value, "--r0");
-    expect_usage_error(sim + " --cn2 " + value, "--cn2");
-    expect_usage_error(sim + " --range " + value, "--range");
-    expect_usage_error("detect " + in.string() + " --min-score " + value, "--min-score");
-    expect_usage_error("wave " + in.string() + " o.png --source-step " + value, "--source-step");
+  // (command and its positionals, option)
+  const std::vector<std::pair<std::string, std::string>> floats = {
+      {"verify " + in.string() + " " + in.string(), "--threshold"},
+      {sim, "--photons"},
+      {sim, "--read-noise"},
+      {sim, "--tilt-rho"},
+      {sim, "--r0"},
+      {sim, "--cn2"},
+      {sim, "--range"},
+      {"detect " + in.string(), "--min-score"},
+      {"wave " + in.string() + " o.png", "--source-step"}};
+  for (const char* value : {"nan", "inf", "-inf", "NaN"}) {
+    for (const auto& [command, option] : floats) {
+      std::string args = command;
+      args.append(" ").append(option).append(" ").append(value);
+      expect_usage_error(args, option);
+    }
   }
   expect_usage_error(sim + " --photons -1", "--photons");
   expect_usage_error(sim + " --read-noise 2", "--read-noise");

@@ -25,7 +25,6 @@ namespace {
 namespace fs = std::filesystem;
 using nlohmann::json;
 using vkjr2::test::error_lines;
-using vkjr2::test::lines_of;
 using vkjr2::test::only_own_lines;
 using vkjr2::test::parse_json;
 using vkjr2::test::run_cli;
