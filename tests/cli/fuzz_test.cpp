@@ -158,7 +158,7 @@ TEST(CliFuzz, RandomBadOptionsAndTruncatedFiles) {
   const auto pick = [&](const auto& v) {
     return v[std::uniform_int_distribution<std::size_t>(0, v.size() - 1)(rng)];
   };
-  constexpr int kCases = 64;
+  constexpr int kCases = vkjr2::test::kSanitized ? 16 : 64;
   for (int k = 0; k < kCases; ++k) {
     const Command& c = cmds[k % cmds.size()];
     // Half the cases of commands with an input file: a broken file and good

@@ -11,6 +11,15 @@
 
 namespace vkjr2::test {
 
+// Under AddressSanitizer every command takes seconds to start and stop: the
+// tests that run the command many times over run a sample of their cases
+// there (memory errors are what that build looks for); the ci build runs all.
+#if defined(__SANITIZE_ADDRESS__)
+inline constexpr bool kSanitized = true;
+#else
+inline constexpr bool kSanitized = false;
+#endif
+
 // The lines of a command's output.
 inline std::vector<std::string> lines_of(const std::string& output) {
   std::vector<std::string> out;
