@@ -460,7 +460,11 @@ void add_faces(CLI::App& app) {
         ->check(integer_range(0, 100000000));
     cmd->footer(
         "Examples:\n  vkjr2 detect photo.jpg --draw boxes.png\n  vkjr2 detect vtest.avi --every 10 "
-        "--max-frames 5 --json");
+        "--max-frames 5 --json\n  vkjr2 detect chip.jpg --input-size 160   # a face that fills a "
+        "small image\n"
+        "A face filling the whole image is larger than the detector's anchors at 416: face-api "
+        "misses such crops too;\n--input-size 160 or 224 finds them (or pass the crop to embed "
+        "--aligned).");
     cmd->callback([a] { run_detect(*a); });
   }
   {
