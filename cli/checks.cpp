@@ -304,14 +304,17 @@ std::string lower_extension(const fs::path& path) {
   return e;
 }
 
+bool has_extension(const fs::path& path, std::initializer_list<const char*> extensions) {
+  const std::string e = lower_extension(path);
+  return std::any_of(extensions.begin(), extensions.end(), [&](const char* k) { return e == k; });
+}
+
 void check_extension(const fs::path& path, std::initializer_list<const char*> allowed,
                      const std::string& what) {
+  if (has_extension(path, allowed)) return;
   const std::string e = lower_extension(path);
   std::string list;
-  for (const char* a : allowed) {
-    if (e == a) return;
-    list += (list.empty() ? "" : ", ") + std::string(a);
-  }
+  for (const char* a : allowed) list += (list.empty() ? "" : ", ") + std::string(a);
   throw UsageError(what,
                    path.string() + ": " +
                        (e.empty() ? std::string("no extension") : "extension '" + e + "'") +

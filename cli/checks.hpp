@@ -69,6 +69,9 @@ void check_output_folder(const std::filesystem::path& path, const std::string& w
 
 // The lowercase extension with its dot (".png").
 std::string lower_extension(const std::filesystem::path& path);
+// Whether the extension (any case) is one of `extensions` (".png", ".jpg").
+bool has_extension(const std::filesystem::path& path,
+                   std::initializer_list<const char*> extensions);
 // Throws UsageError unless the extension is one of `allowed` (".png", ".jpg").
 void check_extension(const std::filesystem::path& path, std::initializer_list<const char*> allowed,
                      const std::string& what);

@@ -9,22 +9,20 @@
 #include <opencv2/videoio.hpp>
 #include <unistd.h>
 
-// clang-format off: jpeglib.h needs <cstdio> first
-#include <jpeglib.h>
-
-#include <cstdio>
-// clang-format on
-
 #include <algorithm>
 #include <array>
 #include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <csetjmp>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <functional>
 #include <system_error>
+
+// After <cstdio>: jpeglib.h uses FILE and size_t without including them.
+#include <jpeglib.h>
 
 #include "checks.hpp"
 #include "log.hpp"
@@ -77,15 +75,11 @@ Image from_mat(const cv::Mat& m, const std::string& source) {
 }  // namespace
 
 bool is_image_path(const std::filesystem::path& path) {
-  static const char* kExt[] = {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".npy"};
-  const std::string e = lower_extension(path);
-  return std::any_of(std::begin(kExt), std::end(kExt), [&](const char* k) { return e == k; });
+  return has_extension(path, {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".bmp", ".webp", ".npy"});
 }
 
 bool is_video_path(const std::filesystem::path& path) {
-  static const char* kExt[] = {".avi", ".mp4", ".mkv", ".mov", ".webm", ".m4v", ".mpg", ".mpeg"};
-  const std::string e = lower_extension(path);
-  return std::any_of(std::begin(kExt), std::end(kExt), [&](const char* k) { return e == k; });
+  return has_extension(path, {".avi", ".mp4", ".mkv", ".mov", ".webm", ".m4v", ".mpg", ".mpeg"});
 }
 
 namespace {
@@ -427,15 +421,11 @@ void check_writable(const std::filesystem::path& path, bool force) {
 }
 
 bool is_video_output_path(const std::filesystem::path& path) {
-  const std::string e = lower_extension(path);
-  return std::any_of(kVideoOutputExtensions.begin(), kVideoOutputExtensions.end(),
-                     [&](const char* k) { return e == k; });
+  return has_extension(path, kVideoOutputExtensions);
 }
 
 bool is_image_output_path(const std::filesystem::path& path) {
-  const std::string e = lower_extension(path);
-  return std::any_of(kImageOutputExtensions.begin(), kImageOutputExtensions.end(),
-                     [&](const char* k) { return e == k; });
+  return has_extension(path, kImageOutputExtensions);
 }
 
 void write_image(const std::filesystem::path& path, const Image& image, bool force) {

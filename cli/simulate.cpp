@@ -133,11 +133,12 @@ void check_frame_size(const std::string& source, std::int64_t h, std::int64_t w,
 }
 
 // One input file → one output file, on a Simulator made for its frame size.
-// The paths and options were checked by check_job; returns the JSON summary;
-// `text` gets the human-readable one.
+// The paths and options were checked by check_job; `limit` is the device's
+// frame limit. Returns the JSON summary; `text` gets the human-readable one.
 json simulate_one(const Device& device,
-                  const std::vector<std::shared_ptr<const sim::BlurModel>>& blur, const SimArgs& a,
-                  const fs::path& in, const fs::path& out, std::uint64_t seed, std::string& text) {
+                  const std::vector<std::shared_ptr<const sim::BlurModel>>& blur,
+                  const FrameLimit& limit, const SimArgs& a, const fs::path& in,
+                  const fs::path& out, std::uint64_t seed, std::string& text) {
   const std::string in_name = in.string(), out_name = out.string();
   const bool video_in = is_video_path(in);
   const bool video_out = is_video_output_path(out);
@@ -160,7 +161,7 @@ json simulate_one(const Device& device,
   auto step = [&](const Image& img) {
     const auto h = img.shape[0], w = img.shape[1];
     if (!sim) {
-      check_frame_size(in_name, h, w, frame_limit(device, blur));
+      check_frame_size(in_name, h, w, limit);
       const sim::Params p = params_for_image(a.path, int(h), int(w));
       sim = std::make_unique<sim::Simulator>(device, p, blur, so);
       for (const auto& warn : sim->derived().warnings) log_warn(warn);
@@ -352,7 +353,8 @@ void run_simulate(const SimArgs& a) {
     json summary;
     try {
       if (folder) check_job(a, jobs[i].first, jobs[i].second);
-      summary = simulate_one(device, blur, a, jobs[i].first, jobs[i].second, a.seed + i, text);
+      summary =
+          simulate_one(device, blur, limit, a, jobs[i].first, jobs[i].second, a.seed + i, text);
     } catch (const Error& e) {
       if (!folder || a.fail_fast) throw;
       ++failures;

@@ -25,11 +25,7 @@ using vkjr2::test::TempDir;
 using vkjr2::test::temporaries;
 
 fs::path write_png(const fs::path& dir, int h, int w, const std::string& name = "in.png") {
-  cv::Mat img(h, w, CV_8UC3);
-  cv::randu(img, cv::Scalar::all(0), cv::Scalar::all(255));
-  fs::path p = dir / name;
-  cv::imwrite(p.string(), img);
-  return p;
+  return vkjr2::test::write_noise_image(dir / name, h, w);
 }
 
 // A usage error: exit code 2, one line, naming `needle`; no device was opened

@@ -30,14 +30,8 @@ using vkjr2::test::parse_json;
 using vkjr2::test::run_cli;
 using vkjr2::test::TempDir;
 using vkjr2::test::temporaries;
+using vkjr2::test::write_noise_image;
 using vkjr2::test::write_truncated;
-
-fs::path write_png(const fs::path& path, int h, int w) {
-  cv::Mat img(h, w, CV_8UC3);
-  cv::randu(img, cv::Scalar::all(0), cv::Scalar::all(255));
-  cv::imwrite(path.string(), img);
-  return path;
-}
 
 struct Finished {
   int exit_code = -1;
@@ -86,7 +80,7 @@ Finished interrupt(const std::vector<std::string>& args, const fs::path& watch, 
 // Issue case 7: SIGTERM and SIGINT during a long command.
 TEST(CliCleanup, SignalsRemoveTemporaryOutputs) {
   TempDir tmp("cleanup_signal");
-  const fs::path in = write_png(tmp.path / "in.png", 96, 128);
+  const fs::path in = write_noise_image(tmp.path / "in.png", 96, 128);
   const fs::path out_dir = tmp.path / "out";
   fs::create_directories(out_dir);
   const fs::path out = out_dir / "long.avi";
@@ -131,8 +125,8 @@ TEST(CliCleanup, BatchesGoOnPastABadFile) {
   TempDir tmp("cleanup_batch");
   const fs::path in = tmp.path / "in";
   fs::create_directories(in);
-  write_png(in / "good.png", 32, 40);
-  write_png(tmp.path / "whole.png", 32, 40);
+  write_noise_image(in / "good.png", 32, 40);
+  write_noise_image(tmp.path / "whole.png", 32, 40);
   write_truncated(tmp.path / "whole.png", in / "a_bad.png", 0.5);  // sorted first
   const fs::path out = tmp.path / "out";
   auto r = run_cli("simulate " + in.string() + " " + out.string() + " --quiet");

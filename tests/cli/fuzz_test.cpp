@@ -132,11 +132,7 @@ Inputs make_inputs(const fs::path& dir) {
     }
   }
   const fs::path video = dir / "clip.avi";
-  {
-    cv::VideoWriter w(video.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'),
-                      10, cv::Size(96, 72));
-    for (int i = 0; i < 24; ++i) w.write(img + cv::Scalar::all(i * 4));
-  }
+  vkjr2::test::write_clip(video, img, 24, 4);
   in.videos.push_back(video);
   for (const double f : {0.05, 0.5}) {
     const fs::path cut = dir / ("cut" + std::to_string(int(f * 100)) + ".avi");

@@ -92,12 +92,7 @@ void expect_failure(const vkjr2::test::CliResult& r, int code, const std::string
 TEST(CliMedia, MaxFramesOneReadsOneFrame) {
   TempDir tmp("media_max1");
   const fs::path clip = tmp.path / "clip.avi";
-  {
-    cv::VideoWriter w(clip.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'),
-                      10, cv::Size(64, 48));
-    ASSERT_TRUE(w.isOpened());
-    for (int i = 0; i < 5; ++i) w.write(scene(48, 64));
-  }
+  ASSERT_TRUE(vkjr2::test::write_clip(clip, scene(48, 64), 5, 0));
   std::vector<std::string> videos{clip.string()};
   if (!vkjr2::test::kSanitized) {  // the user's case, full size
     ASSERT_TRUE(fs::exists(kVtest)) << "run scripts/setup (Debian's opencv-doc)";
@@ -251,12 +246,7 @@ TEST(CliMedia, NpyGreyShapesAndRange) {
 TEST(CliMedia, TruncatedVideoIsAnError) {
   TempDir tmp("media_video");
   const fs::path clip = tmp.path / "clip.avi";
-  {
-    cv::VideoWriter w(clip.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'),
-                      10, cv::Size(64, 48));
-    ASSERT_TRUE(w.isOpened());
-    for (int i = 0; i < 30; ++i) w.write(scene(48, 64) + cv::Scalar::all(i));
-  }
+  ASSERT_TRUE(vkjr2::test::write_clip(clip, scene(48, 64), 30, 1));
   write_truncated(clip, tmp.path / "cut.avi", 0.5);
   const fs::path out = tmp.path / "out.avi";
   const auto r = run_cli("simulate " + (tmp.path / "cut.avi").string() + " " + out.string() +

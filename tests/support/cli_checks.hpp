@@ -1,6 +1,11 @@
 // What a failed command may print and leave: one "vkjr2: error:" line (and
-// "vkjr2: warning:" lines), no decoder noise, no temporary file.
+// "vkjr2: warning:" lines), no decoder noise, no temporary file; and the
+// media files the command-runner tests feed it.
 #pragma once
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -64,6 +69,24 @@ inline std::vector<std::filesystem::path> temporaries(const std::filesystem::pat
     if (it->path().filename().string().find(".tmp") != std::string::npos) out.push_back(it->path());
   }
   return out;
+}
+
+// Random pixels (OpenCV's default RNG), in the format the extension names.
+inline std::filesystem::path write_noise_image(const std::filesystem::path& path, int h, int w) {
+  cv::Mat img(h, w, CV_8UC3);
+  cv::randu(img, cv::Scalar::all(0), cv::Scalar::all(255));
+  cv::imwrite(path.string(), img);
+  return path;
+}
+
+// A Motion-JPEG .avi at 10 frames/s whose frame i is `first + i·step` (all channels).
+inline bool write_clip(const std::filesystem::path& path, const cv::Mat& first, int frames,
+                       double step) {
+  cv::VideoWriter w(path.string(), cv::CAP_FFMPEG, cv::VideoWriter::fourcc('M', 'J', 'P', 'G'), 10,
+                    first.size());
+  if (!w.isOpened()) return false;
+  for (int i = 0; i < frames; ++i) w.write(first + cv::Scalar::all(i * step));
+  return true;
 }
 
 // The first `fraction` of a file's bytes, written to `to`.
