@@ -1,62 +1,65 @@
-// kernels_bench: the compute core on this device, each kernel against the
-// peer a user would pick instead (OpenCV, FFTW, plain C++), measured in the
-// same run (bench/kernels_cases.cpp; `vkjr2 bench kernels` runs the same).
-// Prints a table and writes JSON.
+// kernels_bench (run by `vkjr2 bench kernels`): the compute core on this
+// device, each kernel against the peer a user would pick instead (OpenCV,
+// FFTW, plain C++), measured in the same run (bench/kernels_cases.cpp).
+// Prints a table; writes JSON with --json-file.
+#include <vkjr2/runtime/device.hpp>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
 #include <cstdio>
 #include <string>
 #include <vector>
 
+#include "cli/checks.hpp"
+#include "cli/log.hpp"
+#include "cli/run.hpp"
 #include "kernels_cases.hpp"
 
-namespace vkjr2 {
 namespace {
 
-int run(int argc, char** argv) {
-  std::string json_path = "kernels_bench.json";
-  bool full = false;
+struct Args {
+  std::string device, json_path;
   std::vector<std::string> only;
-  for (int i = 1; i < argc; ++i) {
-    const std::string arg = argv[i];
-    if (arg == "--json" && i + 1 < argc) {
-      json_path = argv[++i];
-    } else if (arg == "--only" && i + 1 < argc) {
-      only.emplace_back(argv[++i]);
-    } else if (arg == "--full") {
-      full = true;
-    } else if (arg == "--help" || arg == "-h") {
-      std::printf(
-          "usage: kernels_bench [--json FILE] [--full] [--only NAME]...\n"
-          "Times vkjr2's kernels on the Vulkan device (VKJR2_DEVICE picks it) against OpenCV,\n"
-          "FFTW and plain C++ on this machine; prints a table and writes JSON (default\n"
-          "kernels_bench.json). --full adds the direct PSF-basis case (K=100, 33x33, 256^2),\n"
-          "which takes minutes. --only runs the named cases:\n");
-      for (const bench::KernelCase& c : bench::kernel_cases()) {
-        std::printf("  %-15s %s\n", c.id.c_str(), c.description.c_str());
-      }
-      return 0;
-    } else {
-      std::fprintf(stderr, "kernels_bench: unknown argument '%s' (try --help)\n", arg.c_str());
-      return 2;
-    }
-  }
-  DeviceOptions options;
-  options.validation = false;
-  const Device dev(options);
-  const bench::KernelsRun results = bench::run_kernel_cases(dev, only, full, "kernels_bench");
-  bench::print_kernels_table(dev, results);
-  bench::write_json(json_path, bench::kernels_json(dev, results));
-  std::printf("wrote %s\n", json_path.c_str());
-  return 0;
+  bool full = false;
+  bool json_out = false;
+};
+
+void run(const Args& a) {
+  if (!a.json_path.empty()) vkjr2::cli::check_output_file(a.json_path, true, "--json-file");
+  const vkjr2::Device device = vkjr2::cli::open_device(a.device);
+  const vkjr2::bench::KernelsRun run =
+      vkjr2::bench::run_kernel_cases(device, a.only, a.full, "bench kernels");
+  vkjr2::bench::print_kernels_table(device, run);
+  const nlohmann::json out = vkjr2::bench::kernels_json(device, run);
+  if (!a.json_path.empty()) vkjr2::bench::write_json(a.json_path, out);
+  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
 }
 
 }  // namespace
-}  // namespace vkjr2
 
 int main(int argc, char** argv) {
-  try {
-    return vkjr2::run(argc, argv);
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "kernels_bench: error: %s\n", e.what());
-    return 1;
+  vkjr2::cli::start_program();
+  CLI::App app{"Kernels vs OpenCV, FFTW and plain C++ on this machine (bench/kernels_bench)",
+               "vkjr2 bench kernels"};
+  vkjr2::cli::add_logging_options(app);
+  Args a;
+  std::string names;
+  for (const vkjr2::bench::KernelCase& c : vkjr2::bench::kernel_cases()) {
+    names +=
+        "\n  " + c.id + std::string(c.id.size() < 15 ? 15 - c.id.size() : 1, ' ') + c.description;
   }
+  app.footer(
+      "Example:\n  vkjr2 bench kernels --only warp,add --json-file kernels.json\n"
+      "Benchmarks (--only; psf-direct-100 runs only with --full or when named):" +
+      names);
+  app.add_option("--only", a.only, "Run only these benchmarks (comma-separated)")
+      ->delimiter(',')
+      ->check(CLI::IsMember(vkjr2::bench::kernel_case_ids()));
+  app.add_flag("--full", a.full, "Also run the direct PSF-basis K=100 case (minutes)");
+  app.add_option("--device", a.device, "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  app.add_option("--json-file", a.json_path, "Also write the results as JSON here");
+  app.add_flag("--json", a.json_out, "Print the JSON after the table");
+  app.callback([&a] { run(a); });
+  return vkjr2::cli::run_program(app, argc, argv);
 }

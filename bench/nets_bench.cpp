@@ -10,9 +10,9 @@
 #include <vkjr2/nets/face_common.hpp>
 #include <vkjr2/nets/face_landmarks.hpp>
 #include <vkjr2/nets/face_recognition.hpp>
-#include <vkjr2/nets/npy.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/nets/tiny_face_detector.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <opencv2/core.hpp>
 #include <opencv2/dnn.hpp>
@@ -34,6 +34,8 @@
 #include <vector>
 
 #include "harness.hpp"
+#include "nets_dnn_peer.hpp"
+#include "nets_tfjs_peer.hpp"
 
 #ifndef VKJR2_SOURCE_DIR
 #define VKJR2_SOURCE_DIR "."
@@ -43,12 +45,16 @@ namespace vkjr2 {
 namespace {
 
 namespace fs = std::filesystem;
-using nets::HostTensor;
+using vkjr2::HostTensor;
 
-constexpr std::array<float, 3> kFaceMeanRgb = {122.782f, 117.001f,
-                                               104.298f};  // landmarks, recognition
-constexpr std::array<float, 3> kDetectorMeanRgb = {117.001f, 114.697f, 97.404f};
-constexpr float kLeakySlope = 0.1f;
+using bench::build_detector;
+using bench::build_landmarks;
+using bench::build_recognition;
+using bench::dnn_forward;
+using bench::DnnBuilder;
+using bench::mat_values;
+using bench::prepare;
+using bench::TfjsServer;
 constexpr int kBatch = 8;
 
 struct Options {
@@ -83,7 +89,7 @@ HostTensor read_parity(const fs::path& dir, const std::string& file) {
                           "run scripts/setup (it writes the face-api references), or point "
                           "VKJR2_PARITY_DIR at a reference directory");
   }
-  return nets::read_npy(p);
+  return vkjr2::read_npy(p);
 }
 
 // HWC images of one size → NCHW floats, batch in order.
@@ -120,11 +126,6 @@ double max_abs_diff(const std::vector<float>& a, const std::vector<float>& b) {
   return m;
 }
 
-std::vector<float> mat_values(const cv::Mat& m) {
-  const cv::Mat c = m.isContinuous() ? m : m.clone();
-  return {c.ptr<float>(), c.ptr<float>() + c.total()};
-}
-
 // One timed run: the seconds it took.
 using Timed = std::function<double()>;
 
@@ -151,460 +152,6 @@ double median(std::vector<double> v) {
   const std::size_t m = v.size() / 2;
   return v.size() % 2 == 1 ? v[m] : 0.5 * (v[m - 1] + v[m]);
 }
-
-// ---- the same networks through the cv::dnn API ------------------------------------
-
-// Builds a cv::dnn::Net layer by layer from TF.js weights (HWIO → OIHW), tracks
-// each output's shape, and counts the FLOPs (2·MACs) of convolutions and FC.
-class DnnBuilder {
- public:
-  struct Blob {
-    int layer = 0;
-    int c = 0, h = 0, w = 0;
-  };
-  enum class Act { none, relu, leaky };
-
-  DnnBuilder(const nets::TfjsWeights& weights, int c, int h, int w)
-      : weights_(weights), input_{0, c, h, w} {}
-
-  Blob input() const { return input_; }
-  cv::dnn::Net& net() { return net_; }
-  double flops() const { return flops_; }
-
-  // (x − mean) / 255 as a Scale layer with bias.
-  Blob normalize(const Blob& x, const std::array<float, 3>& mean) {
-    cv::Mat scale(1, 3, CV_32F), shift(1, 3, CV_32F);
-    for (int c = 0; c < 3; ++c) {
-      scale.at<float>(c) = 1.f / 255.f;
-      shift.at<float>(c) = -mean[std::size_t(c)] / 255.f;
-    }
-    return scale_layer(x, scale, shift);
-  }
-
-  Blob scale(const Blob& x, const std::string& weights, const std::string& biases) {
-    return scale_layer(x, row(take(weights, {x.c})), row(take(biases, {x.c})));
-  }
-
-  // Convolution from a TF.js filter [kh, kw, cin, cout] (or a depthwise one
-  // [kh, kw, C, 1] when depthwise), optional bias, explicit asymmetric pads.
-  Blob conv(const Blob& x, const std::string& filter, const std::string& bias, int stride,
-            const kernels::Padding2d& pad, bool depthwise, Act act) {
-    const HostTensor& f = weights_.at(filter);
-    const int kh = int(f.shape.at(0)), kw = int(f.shape.at(1));
-    const int cin = int(f.shape.at(2));
-    const int cout = depthwise ? cin * int(f.shape.at(3)) : int(f.shape.at(3));
-    const int group = depthwise ? cin : 1;
-    require(cin == x.c, filter + " expects " + std::to_string(cin) + " input channels, got " +
-                            std::to_string(x.c));
-    const int per_group = cin / group;
-    const int oihw_shape[] = {cout, per_group, kh, kw};
-    cv::Mat oihw(4, oihw_shape, CV_32F);
-    auto* o = oihw.ptr<float>();
-    for (int oc = 0; oc < cout; ++oc)
-      for (int ic = 0; ic < per_group; ++ic)
-        for (int y = 0; y < kh; ++y)
-          for (int xx = 0; xx < kw; ++xx) {
-            // Depthwise: output channel oc reads input channel oc (multiplier 1).
-            const std::size_t tap = std::size_t(y) * std::size_t(kw) + std::size_t(xx);
-            const std::size_t src =
-                depthwise ? tap * std::size_t(cin) + std::size_t(oc)
-                          : (tap * std::size_t(cin) + std::size_t(ic)) * std::size_t(cout) +
-                                std::size_t(oc);
-            o[((oc * per_group + ic) * kh + y) * kw + xx] = f.values[src];
-          }
-    // OpenCV 4.6's Convolution rejects asymmetric pads ("Unsupported asymmetric
-    // padding"): pad with a Padding layer first, then convolve unpadded.
-    Blob in = x;
-    kernels::Padding2d conv_pad = pad;
-    if (pad.top != pad.bottom || pad.left != pad.right) {
-      in = zero_pad(x, pad);
-      conv_pad = {};
-    }
-    cv::dnn::LayerParams lp;
-    lp.set("kernel_h", kh);
-    lp.set("kernel_w", kw);
-    lp.set("stride", stride);
-    set_pads(lp, conv_pad);
-    lp.set("num_output", cout);
-    lp.set("group", group);
-    lp.set("bias_term", !bias.empty());
-    lp.blobs.push_back(oihw);
-    if (!bias.empty()) lp.blobs.push_back(row(take(bias, {cout})));
-    const int oh = (x.h + pad.top + pad.bottom - kh) / stride + 1;
-    const int ow = (x.w + pad.left + pad.right - kw) / stride + 1;
-    flops_ += 2.0 * double(cout) * per_group * kh * kw * oh * ow;
-    Blob y = add_layer("Convolution", lp, {in}, cout, oh, ow);
-    return activation(y, act);
-  }
-
-  Blob activation(const Blob& x, Act act) {
-    if (act == Act::none) return x;
-    cv::dnn::LayerParams lp;
-    if (act == Act::leaky) lp.set("negative_slope", kLeakySlope);
-    return add_layer("ReLU", lp, {x}, x.c, x.h, x.w);
-  }
-
-  Blob pool(const Blob& x, bool max, int kernel, int stride, const kernels::Padding2d& pad) {
-    cv::dnn::LayerParams lp;
-    lp.set("pool", max ? "MAX" : "AVE");
-    lp.set("kernel_size", kernel);
-    lp.set("stride", stride);
-    set_pads(lp, pad);
-    lp.set("ceil_mode", false);  // Caffe's default is ceil; TF uses floor
-    return add_layer("Pooling", lp, {x}, x.c, (x.h + pad.top + pad.bottom - kernel) / stride + 1,
-                     (x.w + pad.left + pad.right - kernel) / stride + 1);
-  }
-
-  Blob global_average(const Blob& x) {
-    cv::dnn::LayerParams lp;
-    lp.set("pool", "AVE");
-    lp.set("global_pooling", true);
-    return add_layer("Pooling", lp, {x}, x.c, 1, 1);
-  }
-
-  // Zero rows and columns around the image (a Padding layer).
-  Blob zero_pad(const Blob& x, const kernels::Padding2d& p) {
-    cv::dnn::LayerParams lp;
-    const int paddings[] = {0, 0, 0, 0, p.top, p.bottom, p.left, p.right};
-    lp.set("paddings", cv::dnn::DictValue::arrayInt(paddings, 8));
-    lp.set("value", 0.f);
-    return add_layer("Padding", lp, {x}, x.c, x.h + p.top + p.bottom, x.w + p.left + p.right);
-  }
-
-  // a + b. When b has fewer channels it is added to a's first channels, i.e.
-  // b is zero-extended (face-api's concat with zeros in residualDown).
-  Blob add(const Blob& a, const Blob& b) {
-    require(a.h == b.h && a.w == b.w && a.c >= b.c, "add: shapes differ");
-    cv::dnn::LayerParams lp;
-    lp.set("operation", "sum");
-    if (a.c != b.c) lp.set("output_channels_mode", "input_0");
-    return add_layer("Eltwise", lp, {a, b}, a.c, a.h, a.w);
-  }
-
-  // y = x · W (+ b) with TF.js's W [in, out].
-  Blob fc(const Blob& x, const std::string& weights, const std::string& bias) {
-    const HostTensor& w = weights_.at(weights);
-    const int in = int(w.shape.at(0)), out = int(w.shape.at(1));
-    require(in == x.c * x.h * x.w, weights + ": input size mismatch");
-    cv::Mat wt(out, in, CV_32F);
-    for (int i = 0; i < in; ++i)
-      for (int o = 0; o < out; ++o)
-        wt.at<float>(o, i) = w.values[std::size_t(i) * std::size_t(out) + std::size_t(o)];
-    cv::dnn::LayerParams lp;
-    lp.set("num_output", out);
-    lp.set("bias_term", !bias.empty());
-    lp.set("axis", 1);
-    lp.blobs.push_back(wt);
-    if (!bias.empty()) lp.blobs.push_back(row(take(bias, {out})));
-    flops_ += 2.0 * in * out;
-    return add_layer("InnerProduct", lp, {x}, out, 1, 1);
-  }
-
- private:
-  static void require(bool ok, const std::string& what) {
-    if (!ok) throw Error("nets_bench", "OpenCV DNN graph: " + what, "fix the graph builder");
-  }
-
-  const HostTensor& take(const std::string& name, const std::vector<std::int64_t>& shape) {
-    const HostTensor& t = weights_.at(name);
-    require(t.shape == shape, name + " has shape " + nets::shape_str(t.shape) + ", expected " +
-                                  nets::shape_str(shape));
-    return t;
-  }
-
-  static cv::Mat row(const HostTensor& t) {
-    return cv::Mat(1, int(t.values.size()), CV_32F, const_cast<float*>(t.values.data())).clone();
-  }
-
-  static void set_pads(cv::dnn::LayerParams& lp, const kernels::Padding2d& p) {
-    lp.set("pad_t", p.top);
-    lp.set("pad_b", p.bottom);
-    lp.set("pad_l", p.left);
-    lp.set("pad_r", p.right);
-  }
-
-  Blob scale_layer(const Blob& x, const cv::Mat& scale, const cv::Mat& shift) {
-    cv::dnn::LayerParams lp;
-    lp.set("bias_term", true);
-    lp.set("axis", 1);
-    lp.blobs = {scale, shift};
-    return add_layer("Scale", lp, {x}, x.c, x.h, x.w);
-  }
-
-  Blob add_layer(const std::string& type, cv::dnn::LayerParams& lp, const std::vector<Blob>& inputs,
-                 int c, int h, int w) {
-    lp.type = type;
-    lp.name = type + "_" + std::to_string(++count_);
-    const int id = net_.addLayer(lp.name, lp.type, lp);
-    for (std::size_t i = 0; i < inputs.size(); ++i) net_.connect(inputs[i].layer, 0, id, int(i));
-    require(h > 0 && w > 0, lp.name + " has an empty output");
-    return Blob{id, c, h, w};
-  }
-
-  const nets::TfjsWeights& weights_;
-  Blob input_;
-  cv::dnn::Net net_;
-  double flops_ = 0;
-  int count_ = 0;
-};
-
-kernels::Padding2d same3(const DnnBuilder::Blob& x, int stride) {
-  return kernels::same_padding(x.h, x.w, 3, 3, stride, stride);
-}
-
-kernels::Padding2d pool_pads(const kernels::Pool2d& p) {
-  return {p.pad_top, p.pad_bottom, p.pad_left, p.pad_right};
-}
-
-// FaceRecognitionNet (faceRecognitionNet/*.ts): see nets/face_recognition.cpp.
-DnnBuilder build_recognition(const nets::TfjsWeights& w) {
-  DnnBuilder b(w, 3, 150, 150);
-  using Act = DnnBuilder::Act;
-  const auto conv_layer = [&](const DnnBuilder::Blob& x, const std::string& name, bool down,
-                              bool relu) {
-    const kernels::Padding2d pad =
-        down ? kernels::Padding2d{} : kernels::same_padding(x.h, x.w, 3, 3, 1, 1);
-    DnnBuilder::Blob y =
-        b.conv(x, name + "/conv/filters", name + "/conv/bias", down ? 2 : 1, pad, false, Act::none);
-    y = b.scale(y, name + "/scale/weights", name + "/scale/biases");
-    return b.activation(y, relu ? Act::relu : Act::none);
-  };
-  DnnBuilder::Blob x = b.normalize(b.input(), kFaceMeanRgb);
-  x = conv_layer(x, "conv32_down", true, true);  // 7×7/2 valid
-  x = b.pool(x, true, 3, 2, {});
-  const std::array<std::pair<const char*, bool>, 14> blocks = {{
-      {"conv32_1", false},
-      {"conv32_2", false},
-      {"conv32_3", false},
-      {"conv64_down", true},
-      {"conv64_1", false},
-      {"conv64_2", false},
-      {"conv64_3", false},
-      {"conv128_down", true},
-      {"conv128_1", false},
-      {"conv128_2", false},
-      {"conv256_down", true},
-      {"conv256_1", false},
-      {"conv256_2", false},
-      {"conv256_down_out", true},
-  }};
-  for (const auto& [name, down] : blocks) {
-    DnnBuilder::Blob out = conv_layer(x, std::string(name) + "/conv1", down, true);
-    out = conv_layer(out, std::string(name) + "/conv2", false, false);
-    DnnBuilder::Blob shortcut = x;
-    if (down) {
-      shortcut = b.pool(x, false, 2, 2, {});
-      if (shortcut.h != out.h || shortcut.w != out.w) {
-        out = b.zero_pad(out, {0, shortcut.h - out.h, 0, shortcut.w - out.w});
-      }
-    }
-    x = b.activation(b.add(out, shortcut), Act::relu);
-  }
-  x = b.global_average(x);
-  b.fc(x, "fc", "");
-  return b;
-}
-
-// Depthwise 3×3 (no bias) + pointwise 1×1 + bias + activation.
-DnnBuilder::Blob separable(DnnBuilder& b, const DnnBuilder::Blob& x, const std::string& name,
-                           int stride, const kernels::Padding2d& pad, DnnBuilder::Act act) {
-  const DnnBuilder::Blob mid =
-      b.conv(x, name + "/depthwise_filter", "", stride, pad, true, DnnBuilder::Act::none);
-  return b.conv(mid, name + "/pointwise_filter", name + "/bias", 1, {}, false, act);
-}
-
-// FaceLandmark68Net (faceFeatureExtractor/denseBlock.ts): see nets/face_landmarks.cpp.
-DnnBuilder build_landmarks(const nets::TfjsWeights& w) {
-  DnnBuilder b(w, 3, 112, 112);
-  using Act = DnnBuilder::Act;
-  DnnBuilder::Blob x = b.normalize(b.input(), kFaceMeanRgb);
-  for (int i = 0; i < 4; ++i) {
-    const std::string name = "dense" + std::to_string(i);
-    const DnnBuilder::Blob out1 = i == 0
-                                      ? b.conv(x, name + "/conv0/filters", name + "/conv0/bias", 2,
-                                               same3(x, 2), false, Act::relu)
-                                      : separable(b, x, name + "/conv0", 2, same3(x, 2), Act::relu);
-    DnnBuilder::Blob sum = out1;
-    for (int k = 1; k <= 3; ++k) {
-      const DnnBuilder::Blob in = k == 1 ? out1 : b.activation(sum, Act::relu);
-      sum = b.add(sum,
-                  separable(b, in, name + "/conv" + std::to_string(k), 1, same3(in, 1), Act::none));
-    }
-    x = b.activation(sum, Act::relu);
-  }
-  x = b.pool(x, false, 7, 2, {});
-  b.fc(x, "fc/weights", "fc/bias");
-  return b;
-}
-
-// TinyFaceDetector (tinyYolov2/TinyYolov2Base.ts runMobilenet): see nets/tiny_face_detector.cpp.
-DnnBuilder build_detector(const nets::TfjsWeights& w, int size) {
-  DnnBuilder b(w, 3, size, size);
-  using Act = DnnBuilder::Act;
-  DnnBuilder::Blob x = b.normalize(b.input(), kDetectorMeanRgb);
-  x = b.conv(x, "conv0/filters", "conv0/bias", 1, {}, false, Act::leaky);
-  for (int i = 1; i <= 5; ++i) {
-    x = b.pool(x, true, 2, 2, pool_pads(kernels::pool_same(2, 2, 2, 2, x.h, x.w)));
-    x = separable(b, x, "conv" + std::to_string(i), 1, {1, 1, 1, 1}, Act::leaky);
-  }
-  x = b.pool(x, true, 2, 1, pool_pads(kernels::pool_same(2, 2, 1, 1, x.h, x.w)));
-  b.conv(x, "conv8/filters", "conv8/bias", 1, {}, false, Act::none);
-  return b;
-}
-
-void prepare(cv::dnn::Net& net) {
-  net.setPreferableBackend(cv::dnn::DNN_BACKEND_OPENCV);
-  net.setPreferableTarget(cv::dnn::DNN_TARGET_CPU);
-}
-
-std::vector<float> dnn_forward(cv::dnn::Net& net, const cv::Mat& blob) {
-  net.setInput(blob);
-  return mat_values(net.forward());
-}
-
-// ---- the TF.js peer ------------------------------------------------------------------
-
-// face-api on TF.js in a node process (faceapi_bench.mjs --serve) that times
-// one run per request, so that its runs interleave with ours and both see
-// the same load on this shared machine (its speed drifts up to 2× within
-// minutes). Unavailable (reason() says why) when node, the script or its
-// packages are missing, or the process dies.
-class TfjsServer {
- public:
-  explicit TfjsServer(const Options& o) {
-    if (!o.tfjs) {
-      reason_ = "skipped (--no-tfjs)";
-      return;
-    }
-    if (std::system("command -v node > /dev/null 2>&1") != 0) {
-      reason_ = "node is not installed (apt-get install nodejs, then scripts/setup)";
-      return;
-    }
-    if (!fs::exists(o.faceapi_script)) {
-      reason_ = o.faceapi_script + " not found (pass --faceapi-script PATH)";
-      return;
-    }
-    std::signal(SIGPIPE, SIG_IGN);  // a dead server is an error below, not a signal
-    int to_child[2], from_child[2];
-    if (::pipe(to_child) != 0) {
-      reason_ = "cannot make pipes to node";
-      return;
-    }
-    if (::pipe(from_child) != 0) {
-      ::close(to_child[0]);
-      ::close(to_child[1]);
-      reason_ = "cannot make pipes to node";
-      return;
-    }
-    // No warm-ups at start: time_interleaved warms every peer up, this one too.
-    std::fprintf(stderr, "nets_bench: node %s --serve --warmup 0\n", o.faceapi_script.c_str());
-    std::fflush(stdout);  // the child must not inherit unwritten output
-    std::fflush(stderr);
-    pid_ = ::fork();
-    if (pid_ == 0) {
-      ::dup2(to_child[0], 0);
-      ::dup2(from_child[1], 1);
-      ::dup2(from_child[1], 2);  // its errors come back as lines too
-      ::close(to_child[1]);
-      ::close(from_child[0]);
-      ::execlp("node", "node", o.faceapi_script.c_str(), "--serve", "--warmup", "0",
-               static_cast<char*>(nullptr));
-      ::_exit(127);
-    }
-    ::close(to_child[0]);
-    ::close(from_child[1]);
-    if (pid_ < 0) {
-      ::close(to_child[1]);
-      ::close(from_child[0]);
-      reason_ = "cannot start node";
-      return;
-    }
-    to_ = ::fdopen(to_child[1], "w");
-    from_ = ::fdopen(from_child[0], "r");
-    try {
-      const nlohmann::json ready = read_reply("ready");
-      about_ = ready;
-      about_.erase("ready");
-      peer_ = ready.at("peer").get<std::string>();
-    } catch (const std::exception& e) {
-      reason_ = std::string(e.what()) + " (scripts/setup installs node and face-api's packages)";
-      stop();
-    }
-  }
-  ~TfjsServer() { stop(); }
-  TfjsServer(const TfjsServer&) = delete;
-  TfjsServer& operator=(const TfjsServer&) = delete;
-
-  bool available() const { return !peer_.empty(); }
-  const std::string& reason() const { return reason_; }
-  const std::string& peer() const { return peer_; }  // "face-api 1.7.15 / TF.js 4.22.0 wasm …"
-  const nlohmann::json& about() const { return about_; }  // backend, SIMD, threads, node, machine
-
-  // Seconds of one run of the script's benchmark `name`, as node timed it
-  // (the pipe's round trip is not counted).
-  double run(const std::string& name) {
-    if (!available()) throw InvalidArgument("nets_bench", "the TF.js peer is unavailable");
-    if (std::fprintf(to_, "%s\n", name.c_str()) < 0 || std::fflush(to_) != 0) {
-      throw InvalidArgument("nets_bench", "the TF.js peer (node) stopped reading requests");
-    }
-    try {
-      return read_reply("name").at("ms").get<double>() * 1e-3;
-    } catch (const std::exception& e) {
-      throw InvalidArgument("nets_bench", "the TF.js peer failed timing " + name + ": " + e.what(),
-                            "run node bench/faceapi_bench.mjs alone to see why, or pass --no-tfjs");
-    }
-  }
-
- private:
-  // The next JSON reply holding `key`; other lines (node's own messages)
-  // are echoed. Throws (std::runtime_error) with the last line seen when
-  // the process ends, or with its error reply.
-  nlohmann::json read_reply(const char* key) {
-    std::string last;
-    char* line = nullptr;
-    std::size_t cap = 0;
-    ssize_t n = 0;
-    while ((n = ::getline(&line, &cap, from_)) > 0) {
-      std::string text(line, std::size_t(n));
-      while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-      nlohmann::json j = nlohmann::json::parse(text, nullptr, /*allow_exceptions=*/false);
-      if (j.is_object() && j.contains(key)) {
-        std::free(line);
-        return j;
-      }
-      if (j.is_object() && j.contains("error")) {
-        std::free(line);
-        throw std::runtime_error("faceapi_bench.mjs: " + j.at("error").get<std::string>());
-      }
-      std::fprintf(stderr, "  | %s\n", text.c_str());
-      if (!text.empty()) last = text;
-    }
-    std::free(line);
-    throw std::runtime_error("faceapi_bench.mjs ended" + (last.empty() ? "" : ": " + last));
-  }
-
-  void stop() {
-    if (to_ != nullptr) {
-      std::fputs("quit\n", to_);
-      std::fclose(to_);
-      to_ = nullptr;
-    }
-    if (from_ != nullptr) {
-      std::fclose(from_);
-      from_ = nullptr;
-    }
-    if (pid_ > 0) {
-      ::waitpid(pid_, nullptr, 0);
-      pid_ = -1;
-    }
-  }
-
-  pid_t pid_ = -1;
-  FILE* to_ = nullptr;
-  FILE* from_ = nullptr;
-  std::string reason_, peer_;
-  nlohmann::json about_;
-};
 
 // ---- the benchmark -------------------------------------------------------------------
 
@@ -689,7 +236,7 @@ std::vector<HostTensor> all_faces(const fs::path& dir, const std::string& suffix
   }
   std::sort(files.begin(), files.end());
   std::vector<HostTensor> out;
-  for (const auto& f : files) out.push_back(nets::read_npy(f));
+  for (const auto& f : files) out.push_back(vkjr2::read_npy(f));
   if (out.empty()) {
     throw InvalidArgument("nets_bench", "no *" + suffix + " in " + dir.string(),
                           "re-run scripts/setup to regenerate the parity references");
@@ -996,7 +543,7 @@ int run(int argc, char** argv) {
   // The TF.js peer: started before anything else, then idle between the
   // runs it is asked for (it and we never share the 2 cores).
   std::fprintf(stderr, "nets_bench: starting face-api on TF.js...\n");
-  TfjsServer tfjs(o);
+  TfjsServer tfjs(o.tfjs, o.faceapi_script);
   if (!tfjs.available())
     std::fprintf(stderr, "nets_bench: no TF.js peer: %s\n", tfjs.reason().c_str());
 

@@ -35,6 +35,26 @@ std::vector<bench::Result> dispatch_overhead(const Device& dev) {
                              },
                              5) /
                          100;
+  // Recording alone (host time, nothing submitted): what vkjr2 adds on the
+  // CPU per dispatch, against the per-dispatch execution cost above.
+  for (const Tensor& t : tiny) kernels::fill(s, t, 1.f);  // warm: pipeline, vectors
+  s.run();
+  const double recording = bench::median_seconds(
+                               [&] {
+                                 for (int round = 0; round < 10; ++round) {
+                                   for (const Tensor& t : tiny) kernels::fill(s, t, 1.f);
+                                 }
+                               },
+                               5) /
+                           1000;
+  s.run();
+  bench::Result rec;
+  rec.name = "dispatch recording (host), per dispatch";
+  rec.value = recording * 1e6;
+  rec.unit = "us";
+  rec.peer = "execution, 100 per command buffer";
+  rec.peer_value = batched * 1e6;
+  rec.higher_is_better = false;
   bench::Result r;
   r.name = "dispatch, 100 per command buffer";
   r.value = batched * 1e6;
@@ -42,7 +62,7 @@ std::vector<bench::Result> dispatch_overhead(const Device& dev) {
   r.peer = "1 dispatch per submit+wait";
   r.peer_value = one * 1e6;
   r.higher_is_better = false;
-  return {r};
+  return {r, rec};
 }
 
 std::vector<bench::Result> copy_bandwidth(const Device& dev) {

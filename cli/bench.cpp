@@ -1,267 +1,143 @@
-// vkjr2 bench sim: the fast simulator's frame rate and its speedup over the
-// wave-optics reference on the same parameters, measured twice in the same
-// run: on the same device, and with its FFTs on FFTW on the CPU (the
-// fastest wave optics a user of this machine could run).
-// vkjr2 bench kernels: the kernels benchmarks of bench/kernels_bench
-// (bench/kernels_cases.cpp), each kernel against OpenCV, FFTW or plain C++.
-#include <vkjr2/runtime/device.hpp>
-#include <vkjr2/runtime/stream.hpp>
-#include <vkjr2/sim/blur_model.hpp>
-#include <vkjr2/sim/simulator.hpp>
-#include <vkjr2/sim/wave_image.hpp>
+// vkjr2 bench NAME [OPTIONS]: runs one of the benchmark programs of bench/
+// (each a peer measured in the same run; bench/RESULTS.md). The command
+// runner links none of them: it finds the program beside itself (the build
+// tree's bench/ folder, or the installed libexec/vkjr2/) and replaces itself
+// with it, passing the options on.
+#include <vkjr2/runtime/error.hpp>
 
 #include <CLI/CLI.hpp>
-#include <nlohmann/json.hpp>
+#include <unistd.h>
 
-#include <algorithm>
-#include <cmath>
+#include <array>
+#include <cerrno>
+#include <csignal>
 #include <cstdio>
-#include <iterator>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <iostream>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
-#include "bench/harness.hpp"
-#include "bench/kernels_cases.hpp"
 #include "checks.hpp"
 #include "commands.hpp"
-#include "log.hpp"
+#include "run.hpp"
 
 namespace vkjr2::cli {
 namespace {
 
-struct BenchSimArgs {
-  std::string preset = "moderate", device, json_path;
-  std::vector<int> sizes{256, 512, 1024};
-  int frames = 3;
-  double wave_step_px = 16;
-  int wave_grid = 256;
-  bool json_out = false;
+namespace fs = std::filesystem;
+
+struct Benchmark {
+  const char* name;
+  const char* program;
+  const char* what;
 };
 
-std::vector<float> test_scene(int channels, int h, int w) {
-  std::vector<float> v(std::size_t(channels) * std::size_t(h) * std::size_t(w));
-  std::size_t i = 0;
-  for (int c = 0; c < channels; ++c)
-    for (int y = 0; y < h; ++y)
-      for (int x = 0; x < w; ++x) v[i++] = 0.5f + 0.4f * float(((x / 7 + y / 7 + c) % 2)) - 0.2f;
-  return v;
+constexpr std::array<Benchmark, 4> kBenchmarks{{
+    {"sim", "sim_bench",
+     "fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)"},
+    {"kernels", "kernels_bench", "each kernel against OpenCV, FFTW or plain C++"},
+    {"runtime", "runtime_bench", "dispatch cost, copy bandwidth and FMA throughput of the device"},
+    {"nets", "nets_bench", "the face networks against face-api on TF.js WASM and OpenCV DNN"},
+}};
+
+const Benchmark& benchmark_named(const std::string& name) {
+  for (const Benchmark& b : kBenchmarks) {
+    if (name == b.name) return b;
+  }
+  throw UsageError("bench", "unknown benchmark '" + name + "'", "run `vkjr2 bench --help`");
 }
 
-void run_bench_sim(const BenchSimArgs& a) {
-  // Benchmark results are replaced; the folder must be there before minutes of work.
-  if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
-  const Device device = open_device(a.device);
-  const auto blur = sim::load_shipped_blur_models(device);
-  std::vector<bench::Result> rows;
-  nlohmann::json per_size = nlohmann::json::array();
+// Where the program may be: $VKJR2_BENCH_DIR, else beside this executable in
+// the build tree (cli/vkjr2 → bench/) or installed (bin/vkjr2 → libexec/vkjr2/).
+std::vector<fs::path> candidates(const char* program) {
+  std::vector<fs::path> out;
+  if (const char* dir = std::getenv("VKJR2_BENCH_DIR")) out.push_back(fs::path(dir) / program);
+  std::error_code ec;
+  const fs::path self = fs::read_symlink("/proc/self/exe", ec);
+  if (!ec) {
+    const fs::path dir = self.parent_path();
+    out.push_back(dir.parent_path() / "bench" / program);
+    out.push_back(dir.parent_path() / "libexec" / "vkjr2" / program);
+  }
+  return out;
+}
 
-  // The reference on one 256² grey frame with sources every wave_step_px.
-  sim::Params wp = sim::preset(a.preset);
-  wp.image = {256, 256, 1, 1};
-  sim::WaveImageConfig wc;
-  wc.source_step_px = a.wave_step_px;
-  wc.wave.grid = a.wave_grid;
-  sim::WaveImageReport wr;
-  std::fprintf(stderr, "bench sim: wave-optics reference, 256² grey, sources every %.0f px ...\n",
-               a.wave_step_px);
-  const double wave_seconds = bench::median_seconds(
-      [&] { sim::wave_image(device, wp, wc, test_scene(1, 256, 256), &wr); }, 1, 0);
-  const int wave_sources = wr.sources_x * wr.sources_y;
-  const double per_source = wr.psf_seconds / wave_sources;
-  const double imaging_per_px = wr.image_seconds / (256.0 * 256.0);
-  const sim::WavePlan& plan = wr.plans.front();
-  // The same run with its FFTs on FFTW (one thread) and nothing on the
-  // device; the first row of sources includes FFTW's planning (MEASURE).
-  sim::WaveImageConfig wc_fftw = wc;
-  wc_fftw.wave.fft = sim::FftBackend::fftw;
-  sim::WaveImageReport wr_fftw;
-  std::fprintf(stderr, "bench sim: the same with its FFTs on FFTW (CPU, 1 thread) ...\n");
-  const double fftw_seconds = bench::median_seconds(
-      [&] { sim::wave_image(device, wp, wc_fftw, test_scene(1, 256, 256), &wr_fftw); }, 1, 0);
-  const double per_source_fftw = wr_fftw.psf_seconds / wave_sources;
-  const double imaging_per_px_fftw = wr_fftw.image_seconds / (256.0 * 256.0);
-
-  for (int size : a.sizes) {
-    // Grey; RGB at one wavelength; RGB at one wavelength per channel
-    // (sim::kRgbWavelengthsM: a blur model and a PSF-convolution pass each).
-    for (const int wavelengths : {0, 1, 3}) {
-      const int channels = wavelengths == 0 ? 1 : 3;
-      sim::Params p = sim::preset(a.preset);
-      p.image = {size, size, channels, 1};
-      if (wavelengths == 3)
-        p.optics.wavelengths_m.assign(std::begin(sim::kRgbWavelengthsM),
-                                      std::end(sim::kRgbWavelengthsM));
-      sim::Simulator s(device, p, blur, {});
-      Tensor x = Tensor::from(device, {1, channels, size, size}, test_scene(channels, size, size));
-      Tensor y = Tensor::empty(device, x.shape());
-      Stream stream(device);
-      s.reset(1);
-      const double sec = bench::median_seconds(
-          [&] {
-            s.frame(stream, x, y);
-            stream.run();
-          },
-          a.frames, 1);
-      // The reference at the fast simulator's PSF-field resolution: one
-      // propagation per grid point (its cost is linear in sources; measured
-      // per source above), plus the pixel sum (linear in pixels and channels).
-      const double matched_sources = double(s.field().grid_h()) * s.field().grid_w();
-      // One wavelength: the PSFs serve every channel; the sum runs per
-      // channel. One per channel: the reference propagates each wavelength
-      // (the phase scales as 1/λ, diffraction as λ) on the same grid.
-      const double psf_sets = wavelengths == 3 ? 3.0 : 1.0;
-      const double wave_matched =
-          per_source * matched_sources * psf_sets + imaging_per_px * double(size) * size * channels;
-      const double fftw_matched = per_source_fftw * matched_sources * psf_sets +
-                                  imaging_per_px_fftw * double(size) * size * channels;
-      const std::string tag = std::to_string(size) + "² " +
-                              (wavelengths == 0   ? "grey"
-                               : wavelengths == 1 ? "colour"
-                                                  : "colour 3λ");
-      rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
-                      "wave ref., matched grid (extrap.)", 1 / wave_matched});
-      rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
-                      "wave ref. FFTW, matched (extrap.)", 1 / fftw_matched});
-      nlohmann::json j = {{"size", size},
-                          {"channels", channels},
-                          {"wavelengths", std::max(1, wavelengths)},
-                          {"fps", 1 / sec},
-                          {"seconds_per_frame", sec},
-                          {"field_grid", {s.field().grid_h(), s.field().grid_w()}},
-                          {"field_step_px", s.field().step_x_px()},
-                          {"wave_seconds_matched_grid", wave_matched},
-                          {"wave_fftw_seconds_matched_grid", fftw_matched},
-                          {"wave_matched_is_extrapolated", true},
-                          {"speedup_vs_wave_same_device", wave_matched / sec},
-                          {"speedup_vs_wave_fftw", fftw_matched / sec}};
-      if (size == 256 && channels == 1) {
-        j["wave_seconds_measured"] = wave_seconds;
-        j["speedup_vs_wave_measured_grid"] = wave_seconds / sec;
-        j["wave_fftw_seconds_measured"] = fftw_seconds;
-        j["speedup_vs_wave_fftw_measured_grid"] = fftw_seconds / sec;
-        const std::string sources = std::to_string(wr.sources_x) + "² sources (meas.)";
-        rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s", "wave ref., " + sources,
-                        1 / wave_seconds});
-        rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
-                        "wave ref. FFTW, " + sources, 1 / fftw_seconds});
-      }
-      per_size.push_back(j);
-      std::fprintf(stderr, "bench sim: %s %.3f s/frame\n", tag.c_str(), sec);
+[[noreturn]] void run_benchmark(const Benchmark& b, const std::vector<std::string>& options) {
+  const std::vector<fs::path> places = candidates(b.program);
+  std::string looked;
+  for (const fs::path& p : places) {
+    if (::access(p.c_str(), X_OK) != 0) {
+      looked += (looked.empty() ? "" : ", ") + p.string();
+      continue;
     }
+    std::vector<std::string> args{"vkjr2 bench " + std::string(b.name)};
+    args.insert(args.end(), options.begin(), options.end());
+    std::vector<char*> argv;
+    for (std::string& a : args) argv.push_back(a.data());
+    argv.push_back(nullptr);
+    std::cout.flush();
+    std::fflush(stdout);
+    // The program handles its own signals: nothing stays blocked across exec.
+    sigset_t none;
+    sigemptyset(&none);
+    pthread_sigmask(SIG_SETMASK, &none, nullptr);
+    ::execv(p.c_str(), argv.data());
+    throw Error("vkjr2 bench " + std::string(b.name),
+                "cannot run " + p.string() + ": " + std::strerror(errno),
+                "check that the file is an executable for this machine");
   }
-  bench::print_table(
-      "vkjr2 bench sim — fast simulator vs the wave-optics reference (" + a.preset + ")", device,
-      rows);
-  std::printf(
-      "\nwave-optics reference: %d² propagation grid, %zu screens, δ = %.2f mm, pupil FFT %d, PSFs "
-      "%dx%d;\n"
-      "measured on 256² grey with %dx%d sources every %.0f px: %.1f s (%.3f s per source, %.2f s "
-      "imaging).\n"
-      "the same with its FFTs on FFTW on the CPU (1 thread, FFTW_MEASURE plans; screens, "
-      "propagation and\n"
-      "PSFs all on the host, nothing on the device): %.1f s (%.3f s per source, %.2f s imaging).\n"
-      "Matched grid: one source per fast-simulator field point (the same PSF-field resolution), "
-      "extrapolated\n"
-      "from the measured per-source cost of each (speedup_vs_wave_same_device, "
-      "speedup_vs_wave_fftw).\n",
-      plan.grid, plan.z_m.size(), plan.spacing_m * 1e3, plan.pupil_fft, wr.psf_size, wr.psf_size,
-      wr.sources_x, wr.sources_y, a.wave_step_px, wave_seconds, per_source, wr.image_seconds,
-      fftw_seconds, per_source_fftw, wr_fftw.image_seconds);
-  nlohmann::json out = bench::to_json(device, rows);
-  out["sizes"] = per_size;
-  out["wave_reference"] = {{"grid", plan.grid},
-                           {"screens", plan.z_m.size()},
-                           {"spacing_m", plan.spacing_m},
-                           {"pupil_fft", plan.pupil_fft},
-                           {"psf_size", wr.psf_size},
-                           {"sources", {wr.sources_y, wr.sources_x}},
-                           {"seconds", wave_seconds},
-                           {"seconds_per_source", per_source},
-                           {"fftw_seconds", fftw_seconds},
-                           {"fftw_seconds_per_source", per_source_fftw},
-                           {"fftw_threads", 1}};
-  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
-}
-
-struct BenchKernelsArgs {
-  std::string device, json_path;
-  std::vector<std::string> only;
-  bool full = false;
-  bool json_out = false;
-};
-
-void run_bench_kernels(const BenchKernelsArgs& a) {
-  if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
-  const Device device = open_device(a.device);
-  const bench::KernelsRun run = bench::run_kernel_cases(device, a.only, a.full, "bench kernels");
-  bench::print_kernels_table(device, run);
-  const nlohmann::json out = bench::kernels_json(device, run);
-  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
-}
-
-void add_bench_kernels(CLI::App& bench_cmd) {
-  auto a = std::make_shared<BenchKernelsArgs>();
-  CLI::App* cmd = bench_cmd.add_subcommand(
-      "kernels", "Kernels vs OpenCV, FFTW and plain C++ on this machine (bench/kernels_bench)");
-  std::string names;
-  for (const bench::KernelCase& c : bench::kernel_cases()) {
-    names +=
-        "\n  " + c.id + std::string(c.id.size() < 15 ? 15 - c.id.size() : 1, ' ') + c.description;
-  }
-  cmd->footer(
-      "Example:\n  vkjr2 bench kernels --only warp,add --json-file kernels.json\n"
-      "Benchmarks (--only; psf-direct-100 runs only with --full or when named):" +
-      names);
-  cmd->add_option("--only", a->only, "Run only these benchmarks (comma-separated)")
-      ->delimiter(',')
-      ->check(CLI::IsMember(bench::kernel_case_ids()));
-  cmd->add_flag("--full", a->full, "Also run the direct PSF-basis K=100 case (minutes)");
-  cmd->add_option("--device", a->device,
-                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
-  cmd->add_option("--json-file", a->json_path, "Also write the results as JSON here");
-  cmd->add_flag("--json", a->json_out, "Print the JSON after the table");
-  cmd->callback([a] { run_bench_kernels(*a); });
+  throw Error("vkjr2 bench " + std::string(b.name),
+              "the benchmark program " + std::string(b.program) +
+                  " is not built or installed (looked for " + looked + ")",
+              "build with -DVKJR2_BUILD_BENCH=ON (sim and kernels are built with the command "
+              "runner), or point VKJR2_BENCH_DIR at the folder that holds it");
 }
 
 }  // namespace
 
+bool is_benchmark(std::string_view name) {
+  for (const Benchmark& b : kBenchmarks) {
+    if (name == b.name) return true;
+  }
+  return false;
+}
+
+int run_benchmark(std::string_view name, int argc, char** argv) {
+  try {
+    run_benchmark(benchmark_named(std::string(name)), std::vector<std::string>(argv, argv + argc));
+  } catch (const Error& e) {
+    print_error(describe_error(e));
+  }
+  return 1;
+}
+
 void add_bench(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand("bench", "Benchmarks with a peer measured in the same run");
-  cmd->require_subcommand(1);
-  auto a = std::make_shared<BenchSimArgs>();
-  CLI::App* sim_cmd = cmd->add_subcommand(
-      "sim",
-      "Fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)");
-  sim_cmd->footer(
-      "Example:\n  vkjr2 bench sim --json-file bench_sim.json\n"
-      "Kernels: vkjr2 bench kernels. Runtime and face networks: "
-      "build/release/bench/{runtime,nets}_bench (bench/RESULTS.md).");
-  sim_cmd->add_option("--preset", a->preset, "Turbulence preset")
-      ->default_val("moderate")
-      ->check(CLI::IsMember({"weak", "moderate", "strong"}));
-  sim_cmd->add_option("--sizes", a->sizes, "Square frame sizes")
-      ->default_val(std::vector<int>{256, 512, 1024})
-      ->check(integer_range(16, 2048));
-  sim_cmd->add_option("--frames", a->frames, "Timed frames per size (median)")
-      ->default_val(3)
-      ->check(integer_range(1, 1000));
-  sim_cmd
-      ->add_option("--wave-step", a->wave_step_px,
-                   "Source spacing of the measured wave-optics run (px)")
-      ->default_val(16)
-      ->check(finite_range(2.0, 256.0));
-  sim_cmd->add_option("--wave-grid", a->wave_grid, "Wave-optics propagation grid")
-      ->default_val(256)
-      ->check(fft_length(64, 4096));
-  sim_cmd->add_option("--device", a->device,
-                      "Vulkan device index or name substring (else VKJR2_DEVICE)");
-  sim_cmd->add_option("--json-file", a->json_path, "Also write the results as JSON here");
-  sim_cmd->add_flag("--json", a->json_out, "Print the JSON after the table");
-  sim_cmd->callback([a] { run_bench_sim(*a); });
-  add_bench_kernels(*cmd);
+  // `vkjr2 bench NAME ...` is handed to the program before parsing (main.cpp);
+  // this parser gives the help, the list and the errors, and takes what
+  // reaches it after global options (`vkjr2 --verbose bench sim ...`).
+  cmd->allow_extras();
+  auto name = std::make_shared<std::string>();
+  std::vector<std::string> names;
+  std::string list;
+  for (const Benchmark& b : kBenchmarks) {
+    names.emplace_back(b.name);
+    list += "\n  " + std::string(b.name) + std::string(10 - std::strlen(b.name), ' ') + b.what +
+            " (" + b.program + ")";
+  }
+  cmd->add_option("benchmark", *name, "Which benchmark to run (below)")
+      ->required()
+      ->check(CLI::IsMember(names));
+  cmd->footer("Benchmarks:" + list +
+              "\nOptions after NAME are the benchmark's: `vkjr2 bench NAME --help` lists them.\n"
+              "Examples:\n  vkjr2 bench sim --sizes 256 --json-file bench_sim.json\n"
+              "  vkjr2 bench kernels --only warp,add\n"
+              "The latest figures and the machines they came from: bench/RESULTS.md.");
+  cmd->callback([cmd, name] { run_benchmark(benchmark_named(*name), cmd->remaining()); });
 }
 
 }  // namespace vkjr2::cli

@@ -3,6 +3,8 @@
 
 #include <CLI/CLI.hpp>
 
+#include <string_view>
+
 namespace vkjr2::cli {
 
 void add_devices(CLI::App& app);       // devices.cpp
@@ -10,8 +12,14 @@ void add_faces(CLI::App& app);         // faces.cpp: detect, embed, verify, iden
 void add_simulate(CLI::App& app);      // simulate.cpp
 void add_sim_train(CLI::App& app);     // sim_train.cpp
 void add_wave(CLI::App& app);          // wave.cpp
-void add_bench(CLI::App& app);         // bench.cpp: bench sim, bench kernels
+void add_bench(CLI::App& app);         // bench.cpp: runs bench/'s programs
 void add_sim_validate(CLI::App& app);  // sim_validate.cpp
 void add_demo(CLI::App& app);          // demo.cpp: the turbulence-vs-recognition study
+
+// bench.cpp: `vkjr2 bench NAME ARGS...` runs NAME's program with ARGS (argv,
+// argc of them) in place of this process; returns 1 after printing the error
+// when it cannot.
+bool is_benchmark(std::string_view name);
+int run_benchmark(std::string_view name, int argc, char** argv);
 
 }  // namespace vkjr2::cli

@@ -1,11 +1,12 @@
 // vkjr2 demo: the turbulence-vs-recognition study on media Debian and npm ship.
 #include <vkjr2/jr2/faces.hpp>
 #include <vkjr2/kernels/elementwise.hpp>
+#include <vkjr2/nets/face_box.hpp>
 #include <vkjr2/nets/face_common.hpp>
-#include <vkjr2/nets/host_tensor.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
 
 #include <CLI/CLI.hpp>
@@ -74,15 +75,6 @@ cv::Mat to_bgr(const Image& img) {
   return out;
 }
 
-double iou(const nets::FaceBox& a, const nets::FaceBox& b) {
-  const double x0 = std::max(a.x, b.x), y0 = std::max(a.y, b.y);
-  const double x1 = std::min(a.x + a.width, b.x + b.width),
-               y1 = std::min(a.y + a.height, b.y + b.height);
-  const double inter = std::max(0.0, x1 - x0) * std::max(0.0, y1 - y0);
-  const double uni = a.width * a.height + b.width * b.height - inter;
-  return uni > 0 ? inter / uni : 0.0;
-}
-
 double cosine(std::span<const float> a, std::span<const float> b) {
   double ab = 0, aa = 0, bb = 0;
   for (std::size_t i = 0; i < a.size(); ++i) {
@@ -119,7 +111,7 @@ void write_image_mat(const fs::path& path, const cv::Mat& m, bool force) {
 
 void write_text(const fs::path& path, const std::string& text, bool force) {
   check_writable(path, force);
-  nets::write_file_atomic(path, std::as_bytes(std::span(text)), "demo");
+  vkjr2::write_file_atomic(path, std::as_bytes(std::span(text)), "demo");
 }
 
 struct StrengthStats {
@@ -230,7 +222,7 @@ void run_demo(const DemoArgs& a) {
           const jr2::Face* best = nullptr;
           double best_iou = kMatchIou;
           for (const auto& f : faces) {
-            const double v = iou(f.box, ph.faces[i].box);
+            const double v = nets::box_iou(f.box, ph.faces[i].box);
             if (v >= best_iou) {
               best_iou = v;
               best = &f;

@@ -30,6 +30,7 @@ nlohmann::json to_json(const DeviceInfo& d, bool selected) {
           {"driver_info", d.driver_info},
           {"vulkan", d.api_version_string()},
           {"subgroup_size", d.subgroup_size},
+          {"tuning", device_traits_for(d).profile},
           {"shared_memory_bytes", d.max_shared_memory_bytes},
           {"max_storage_buffer_bytes", d.max_storage_buffer_range},
           {"max_workgroup_invocations", d.max_workgroup_invocations},
@@ -61,6 +62,9 @@ void run_devices(const DevicesArgs& args) {
     std::printf("      driver          %s (%s), Vulkan %s\n", d.driver_name.c_str(),
                 d.driver_info.c_str(), d.api_version_string().c_str());
     std::printf("      subgroup size   %u\n", d.subgroup_size);
+    const DeviceTraits traits = device_traits_for(d);
+    std::printf("      tuning          %s (%s)\n", traits.profile.c_str(),
+                traits.measured ? "measured on this driver" : "GPU default, not measured");
     std::printf("      shared memory   %s\n", format_bytes(d.max_shared_memory_bytes).c_str());
     std::printf("      storage buffer  %s max per binding\n",
                 format_bytes(d.max_storage_buffer_range).c_str());

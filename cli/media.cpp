@@ -1,7 +1,7 @@
 #include "media.hpp"
 
-#include <vkjr2/nets/npy.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <fcntl.h>
 #include <opencv2/imgcodecs.hpp>
@@ -255,13 +255,13 @@ ImageHeader inspect(const std::vector<unsigned char>& b, const std::string& sour
 // .npy: H×W×3 RGB, H×W×1 or H×W grey (a leading 1 allowed), float32 in 0..255.
 Image read_npy_image(const std::filesystem::path& path) {
   const std::string source = path.string();
-  Image img = nets::read_npy(path);
+  Image img = vkjr2::read_npy(path);
   if (img.shape.size() == 4 && img.shape[0] == 1) img.shape.erase(img.shape.begin());
   if (img.shape.size() == 2) img.shape.push_back(1);
   const bool ok_shape = img.shape.size() == 3 && (img.shape[2] == 3 || img.shape[2] == 1) &&
                         img.shape[0] > 0 && img.shape[1] > 0;
   if (!ok_shape) {
-    throw Error("read_image", source + " has shape " + nets::shape_str(img.shape),
+    throw Error("read_image", source + " has shape " + vkjr2::shape_str(img.shape),
                 "save images as float32 arrays of shape (height, width, 3) RGB or (height, "
                 "width) grey, in 0..255");
   }
@@ -432,7 +432,7 @@ void write_image(const std::filesystem::path& path, const Image& image, bool for
   check_writable(path, force);
   check_extension(path, kImageOutputExtensions, "write");
   if (image.shape.size() != 3 || image.shape[2] != 3) {
-    throw InvalidArgument("write_image", "image has shape " + nets::shape_str(image.shape),
+    throw InvalidArgument("write_image", "image has shape " + vkjr2::shape_str(image.shape),
                           "pass an H×W×3 RGB image");
   }
   const int h = int(image.shape[0]), w = int(image.shape[1]);
@@ -512,7 +512,7 @@ VideoWriter::~VideoWriter() {
 void VideoWriter::write(const Image& frame) {
   if (frame.shape.size() != 3 || frame.shape[0] != height_ || frame.shape[1] != width_ ||
       frame.shape[2] != 3) {
-    throw InvalidArgument("write_video", "frame has shape " + nets::shape_str(frame.shape) +
+    throw InvalidArgument("write_video", "frame has shape " + vkjr2::shape_str(frame.shape) +
                                              ", the video is " + std::to_string(height_) + "×" +
                                              std::to_string(width_) + "×3");
   }

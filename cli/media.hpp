@@ -9,7 +9,7 @@
 // off the terminal unless --verbose.
 #pragma once
 
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -23,7 +23,7 @@ namespace vkjr2::cli {
 
 // An RGB image as H×W×3 float32 in 0..255 (16-bit inputs are scaled by
 // 255/65535, grey ones expanded to RGB, alpha dropped).
-using Image = nets::HostTensor;
+using Image = vkjr2::HostTensor;
 
 bool is_image_path(const std::filesystem::path& path);  // by extension (incl. .npy)
 bool is_video_path(const std::filesystem::path& path);

@@ -1,7 +1,7 @@
 #include "sim_common.hpp"
 
 #include <vkjr2/runtime/error.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 
 #include <algorithm>
 #include <cmath>

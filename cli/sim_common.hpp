@@ -2,7 +2,7 @@
 // and optics options, and images as NCHW planes.
 #pragma once
 
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/params.hpp>
 
 #include <CLI/CLI.hpp>

@@ -1,6 +1,6 @@
 // vkjr2 sim-validate: the simulator's physics checks at full size, as a table.
 #include <vkjr2/runtime/device.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/validate.hpp>
 
 #include <CLI/CLI.hpp>

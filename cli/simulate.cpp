@@ -2,7 +2,7 @@
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/stream.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
 
 #include <CLI/CLI.hpp>
@@ -89,7 +89,7 @@ void dump_fields(const sim::Simulator& sim, const fs::path& dir, bool force) {
   info["grid"] = {sim.field().grid_h(), sim.field().grid_w()};
   info["grid_step_px"] = {sim.field().step_y_px(), sim.field().step_x_px()};
   const std::string text = info.dump(2) + "\n";
-  nets::write_file_atomic(dir / "fields.json", std::as_bytes(std::span(text)), "--dump-fields");
+  vkjr2::write_file_atomic(dir / "fields.json", std::as_bytes(std::span(text)), "--dump-fields");
 }
 
 // The largest frame simulate takes on a device: each pixel's PSF-basis

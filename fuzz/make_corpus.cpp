@@ -2,8 +2,8 @@
 //   make_corpus DIR   ->  DIR/safetensors/*, DIR/npy/*, DIR/tfjs/*
 // The files are small and committed under fuzz/corpus/; re-run this after a
 // format change.
-#include <vkjr2/nets/npy.hpp>
 #include <vkjr2/nets/safetensors.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <cstdint>
 #include <cstdio>

@@ -1,8 +1,11 @@
 #include <vkjr2/jr2/align.hpp>
 #include <vkjr2/runtime/error.hpp>
 
+#include <algorithm>
+#include <array>
 #include <cmath>
 #include <string>
+#include <vector>
 
 namespace vkjr2::jr2 {
 
@@ -125,6 +128,71 @@ nets::Var align_face(nets::Tape& t, const nets::Var& image, std::span<const floa
   const auto src = five_points(landmarks68_xy);
   const auto dst = canonical_points(size);
   return align_crop(t, image, fit_similarity(src, dst), size);
+}
+
+// ---- face-api's recognition crop ------------------------------------------
+
+nets::FaceBox face_api_dlib_rect(std::span<const double> lm, int image_w, int image_h) {
+  if (lm.size() != 136) {
+    throw InvalidArgument("face_api_chip_box",
+                          "landmarks68_xy holds " + std::to_string(lm.size()) +
+                              " values, expected 136 (68 points × x, y)",
+                          "pass FaceLandmark68Net's 68 points in image pixels");
+  }
+  for (std::size_t i = 0; i < lm.size(); ++i) {
+    if (!std::isfinite(lm[i])) {
+      throw InvalidArgument("face_api_chip_box",
+                            "landmark " + std::to_string(i / 2) + " has a non-finite " +
+                                (i % 2 == 0 ? "x" : "y") + " coordinate",
+                            "check the landmark net's input and output for NaN/Inf");
+    }
+  }
+  if (image_w <= 0 || image_h <= 0) {
+    throw InvalidArgument("face_api_chip_box",
+                          "image size " + std::to_string(image_w) + "×" + std::to_string(image_h) +
+                              " is not positive",
+                          "pass the width and height of the frame the landmarks belong to");
+  }
+  // getCenterPoint: Σ from (0, 0) in order, then divided by the count.
+  const auto centre = [&](std::size_t first, std::size_t last) {
+    double sx = 0, sy = 0;
+    for (std::size_t i = first; i <= last; ++i) {
+      sx += lm[2 * i];
+      sy += lm[2 * i + 1];
+    }
+    const auto n = double(last - first + 1);
+    return std::array<double, 2>{sx / n, sy / n};
+  };
+  const std::array<std::array<double, 2>, 3> centres = {centre(36, 41), centre(42, 47),
+                                                        centre(48, 67)};
+  const auto& mouth = centres[2];
+  const auto dist_to_mouth = [&](const std::array<double, 2>& p) {
+    const double dx = mouth[0] - p[0], dy = mouth[1] - p[1];
+    return std::sqrt(dx * dx + dy * dy);
+  };
+  const double eye_to_mouth = (dist_to_mouth(centres[0]) + dist_to_mouth(centres[1])) / 2;
+  constexpr double kRelX = 0.5, kRelY = 0.43, kRelScale = 0.45;  // FaceLandmarks.ts
+  const double size = std::floor(eye_to_mouth / kRelScale);
+  double rx = 0, ry = 0;
+  for (const auto& c : centres) {
+    rx += c[0];
+    ry += c[1];
+  }
+  rx /= 3;
+  ry /= 3;
+  const double x = std::floor(std::max(0.0, rx - kRelX * size));
+  const double y = std::floor(std::max(0.0, ry - kRelY * size));
+  return nets::FaceBox{x, y, std::min(size, double(image_w) + x),
+                       std::min(size, double(image_h) + y)};
+}
+
+nets::FaceBox face_api_chip_box(std::span<const double> lm, int image_w, int image_h) {
+  return nets::clip_at_image_borders(face_api_dlib_rect(lm, image_w, image_h), image_w, image_h);
+}
+
+nets::FaceBox face_api_chip_box(std::span<const float> lm, int image_w, int image_h) {
+  const std::vector<double> d(lm.begin(), lm.end());
+  return face_api_chip_box(std::span<const double>(d), image_w, image_h);
 }
 
 }  // namespace vkjr2::jr2

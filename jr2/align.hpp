@@ -4,6 +4,7 @@
 // (not through the landmarks, as in CVLface's aligner).
 #pragma once
 
+#include <vkjr2/nets/face_box.hpp>
 #include <vkjr2/nets/ops.hpp>
 
 #include <array>
@@ -59,5 +60,24 @@ nets::Var align_crop(nets::Tape& t, const nets::Var& image, const Similarity& im
 // Convenience: five points → similarity onto canonical_points(size) → crop.
 nets::Var align_face(nets::Tape& t, const nets::Var& image, std::span<const float> landmarks68_xy,
                      int size);
+
+// ---- face-api's recognition crop ------------------------------------------
+// The box face-api cuts the recognition chip from (no warp: an axis-aligned
+// crop, then pad to square and resize to 150²; nets/face_recognition.hpp).
+
+// face-api's dlib alignment rect (FaceLandmarks.alignDlib, what
+// computeFaceDescriptors uses): eye centres = mean of points 36–41 and 42–47,
+// mouth centre = mean of 48–67; size = floor(mean eye-to-mouth distance /
+// 0.45); ref = mean of the three centres; x = floor(max(0, ref.x − 0.5·size)),
+// y = floor(max(0, ref.y − 0.43·size)); width = min(size, image_w + x),
+// height = min(size, image_h + y). Not yet clipped to the image.
+// landmarks68_xy: 136 values x0, y0, x1, y1, … in image pixels.
+nets::FaceBox face_api_dlib_rect(std::span<const double> landmarks68_xy, int image_w, int image_h);
+// The recognition crop face-api takes: nets::clip_at_image_borders(face_api_dlib_rect(…)).
+// Throws InvalidArgument for a landmark count other than 68 points, non-finite
+// values or a non-positive image size. The double overload reproduces
+// face-api's float64 arithmetic bit for bit; the float one converts first.
+nets::FaceBox face_api_chip_box(std::span<const double> landmarks68_xy, int image_w, int image_h);
+nets::FaceBox face_api_chip_box(std::span<const float> landmarks68_xy, int image_w, int image_h);
 
 }  // namespace vkjr2::jr2

@@ -45,7 +45,7 @@ std::vector<Face> FaceAnalyzer::analyze(Stream& stream, const Tensor& image,
     f.cut_by_border = det.box.x < 0 || det.box.y < 0 || det.box.x + det.box.width > w ||
                       det.box.y + det.box.height > h;
     f.landmarks = landmarks_->landmarks_in_image(stream, image, det.box);
-    f.chip_box = nets::face_api_chip_box(std::span<const double>(f.landmarks), w, h);
+    f.chip_box = face_api_chip_box(std::span<const double>(f.landmarks), w, h);
     if (options.descriptors) {
       nets::Tape t(stream, false);
       nets::Var input;

@@ -3,6 +3,8 @@
 #include <vkjr2/kernels/elementwise.hpp>
 #include <vkjr2/kernels/reduce.hpp>
 
+#include "internal/channel_ops.hpp"
+
 namespace vkjr2::kernels {
 
 using detail::unary;

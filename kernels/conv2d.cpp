@@ -32,10 +32,6 @@ static_assert(sizeof(ConvPush) == 31 * 4 && sizeof(ConvPush) <= 128);
 constexpr std::uint32_t kPx = 8;  // output pixels per invocation (blocked, pointwise, depthwise)
 constexpr std::uint32_t kCoBlock = 8;  // output channels per invocation (blocked, pointwise)
 constexpr std::uint32_t kBlockedGroup = 64;
-constexpr std::uint32_t kMaxRowTile = 20;  // blocked: rows up to this wide are one pixel block
-constexpr std::uint32_t kMaxTileAccumulators = 25;  // blocked: vec4 accumulators per invocation
-constexpr std::uint32_t kMaxDwRowTile = 16;         // depthwise: rows up to this wide are one block
-constexpr std::uint32_t kMaxDwAccumulators = 32;    // depthwise: px · ry floats per invocation
 constexpr int kMaxBlockedTaps = 7;        // KH, KW ≤ 7 unroll in the blocked/depthwise kernels
 constexpr int kMaxBlockedStep = 4;        // stride_x, dilation_x ≤ 4
 constexpr std::uint32_t kPadGroups = 32;  // conv2d_pad: workgroups to aim for
@@ -176,19 +172,22 @@ struct BlockedTile {
 // conv): a weight fetch (the same texel in every lane) costs about twice an
 // input fetch, and the accumulators live on the stack either way, so the
 // best tiles are large (up to ~25 vec4) with no wasted pixels:
-//  - a row of at most kMaxRowTile pixels is one block (px = wout: a 10-wide
+//  - a row of at most DeviceTraits::conv_max_row_tile pixels is one block (px = wout: a 10-wide
 //    row in 8-pixel blocks wastes 6 of 16 pixels);
 //  - stride 1: 4 channels × ry rows (half the weight fetches per FMA of 8
 //    channels × 1 row), ry splitting the rows evenly;
 //  - strided: 8 channels × 1 row when that fits, else 4 channels.
-BlockedTile blocked_tile(const ConvPush& c) {
+BlockedTile blocked_tile(const ConvPush& c, const DeviceTraits& tr) {
   BlockedTile t;
-  if (c.wout <= kMaxRowTile) {
+  const std::uint32_t max_row_tile = tr.conv_max_row_tile;
+  const std::uint32_t max_accumulators = tr.conv_max_tile_accumulators;
+  if (c.wout <= max_row_tile) {
     t.px = c.wout;
   } else {  // the fewest computed pixels per row, then the widest block
     std::uint32_t best = ~0u;
-    // Strided: at most 12, so that 8 channels fit (their input rows are long).
-    const std::uint32_t max_px = c.sx == 1 ? kMaxRowTile : kMaxTileAccumulators / 2;
+    // Strided: at most half the accumulators (12 on lavapipe), so that 8
+    // channels fit (their input rows are long).
+    const std::uint32_t max_px = c.sx == 1 ? max_row_tile : max_accumulators / 2;
     for (std::uint32_t px = max_px; px >= 4; --px) {
       if (px * c.sx % 4 != 0) continue;  // every block's row segment starts 4-aligned
       const std::uint32_t slots = div_up(c.wout, px) * px;
@@ -200,10 +199,10 @@ BlockedTile blocked_tile(const ConvPush& c) {
   }
   if (c.sy == 1 && c.dy == 1) {
     t.cg = 1;
-    const std::uint32_t ry_max = std::max(1u, kMaxTileAccumulators / t.px);
+    const std::uint32_t ry_max = std::max(1u, max_accumulators / t.px);
     t.ry = div_up(c.hout, div_up(c.hout, ry_max));
   } else {
-    t.cg = 2 * t.px <= kMaxTileAccumulators ? 2 : 1;
+    t.cg = 2 * t.px <= max_accumulators ? 2 : 1;
   }
   return t;
 }
@@ -221,21 +220,23 @@ void set_padded(ConvPush& c, std::uint32_t px = kPx, std::uint32_t ry = 1, std::
 void set_padded(ConvPush& c, const BlockedTile& t) { set_padded(c, t.px, t.ry, t.sh); }
 
 // The depthwise kernel's tile: one channel × ry rows × px pixels (px · ry
-// float accumulators). A row of up to kMaxDwRowTile pixels is one block;
+// float accumulators). A row of up to DeviceTraits::depthwise_max_row_tile pixels is one block;
 // wider rows take the 8..16-pixel block that computes the fewest pixels
-// (strided: 8). Stride 1 stacks rows up to kMaxDwAccumulators, split evenly:
+// (strided: 8). Stride 1 stacks rows up to depthwise_max_accumulators, split evenly:
 // the KH − 1 input rows the outputs share are read once, and the 9 weights
 // once per px · ry outputs (on lavapipe the weight fetches, the same address
 // in every lane, cost as much as the FMAs).
-BlockedTile depthwise_tile(const ConvPush& c) {
+BlockedTile depthwise_tile(const ConvPush& c, const DeviceTraits& tr) {
   BlockedTile t;
+  const std::uint32_t max_row_tile = tr.depthwise_max_row_tile;
+  const std::uint32_t max_accumulators = tr.depthwise_max_accumulators;
   t.cg = 1;
   t.sh = (4u - std::uint32_t(c.pl) % 4u) % 4u;
-  if (c.wout <= kMaxDwRowTile) {
+  if (c.wout <= max_row_tile) {
     t.px = c.wout;
   } else if (c.sx == 1) {
     std::uint32_t best = ~0u;
-    for (std::uint32_t px = kMaxDwRowTile; px >= 8; px -= 4) {
+    for (std::uint32_t px = max_row_tile; px >= 8; px -= 4) {
       const std::uint32_t slots = div_up(c.wout, px) * px;
       if (slots < best) {
         best = slots;
@@ -246,22 +247,23 @@ BlockedTile depthwise_tile(const ConvPush& c) {
     t.px = 8;
   }
   if (c.sy == 1 && c.dy == 1) {
-    const std::uint32_t ry_max = std::clamp(kMaxDwAccumulators / t.px, 1u, 4u);
+    const std::uint32_t ry_max = std::clamp(max_accumulators / t.px, 1u, 4u);
     t.ry = div_up(c.hout, div_up(c.hout, ry_max));
   }
   return t;
 }
 
 // The tile of the variants that read a padded input (blocked, depthwise).
-BlockedTile padded_tile(const ConvPush& c, Conv2dAlgo algo) {
-  return algo == Conv2dAlgo::depthwise ? depthwise_tile(c) : blocked_tile(c);
+BlockedTile padded_tile(const ConvPush& c, Conv2dAlgo algo, const DeviceTraits& tr) {
+  return algo == Conv2dAlgo::depthwise ? depthwise_tile(c, tr) : blocked_tile(c, tr);
 }
 
 // Elements of the padded input the blocked or depthwise kernel (its tile's
 // geometry) reads.
-std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p, Conv2dAlgo algo) {
+std::uint64_t padded_elements(const Dims& d, const Conv2dParams& p, Conv2dAlgo algo,
+                              const DeviceTraits& tr) {
   ConvPush c = push_of(d, p);
-  set_padded(c, padded_tile(c, algo));
+  set_padded(c, padded_tile(c, algo, tr));
   return std::uint64_t(d.n) * std::uint64_t(d.cin) * c.hp * c.wp;
 }
 
@@ -280,14 +282,17 @@ struct PointwiseTile {
   std::uint32_t co = kCoBlock, unroll = 1, px = kPx;
 };
 
-PointwiseTile pointwise_tile(const ConvPush& c) {
+PointwiseTile pointwise_tile(const ConvPush& c, const DeviceTraits& tr) {
   PointwiseTile t;
   // 16 channels read two 8-channel blocks of the packed weights: only when
   // both exist (cout a multiple of 16).
   if (c.cout % (2 * kCoBlock) == 0) t.co = 2 * kCoBlock;
   // 16 pixels on planes of 512 or more (landmark net: 28² and 56²; 14² and
   // 7² ran slower in the net).
-  if (std::uint64_t(c.h) * c.w >= 512) t.px = 2 * kPx;
+  if (tr.pointwise_wide_min_pixels > 0 &&
+      std::uint64_t(c.h) * c.w >= tr.pointwise_wide_min_pixels) {
+    t.px = 2 * kPx;
+  }
   for (std::uint32_t u : {4u, 2u}) {
     if (c.cin % u == 0) {
       t.unroll = u;
@@ -311,7 +316,9 @@ bool small_kernel(const Dims& d, const Conv2dParams& p) {
 }
 
 // Empty string when `algo` can run these shapes, else why not.
-std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, const Conv2dParams& p) {
+std::string why_not(Conv2dAlgo algo, const Device& device, const Dims& d, const Conv2dParams& p) {
+  const DeviceInfo& info = device.info();
+  const DeviceTraits& tr = device.traits();
   const std::uint64_t texel_limit =
       std::min<std::uint64_t>(info.max_texel_buffer_elements, std::uint64_t(1) << 31);
   switch (algo) {
@@ -322,7 +329,7 @@ std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, cons
       if (p.groups != 1) return "needs groups == 1";
       if (p.relu_input) return "takes no input ReLU";
       if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
-      if (padded_elements(d, p, algo) > texel_limit) {
+      if (padded_elements(d, p, algo, tr) > texel_limit) {
         return "the padded input exceeds the texel limit";
       }
       return {};
@@ -336,7 +343,7 @@ std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, cons
     case Conv2dAlgo::depthwise:
       if (p.groups != d.cin || d.cout % d.cin != 0) return "needs groups == Cin";
       if (!small_kernel(d, p)) return "needs KH, KW <= 7 and stride_x, dilation_x <= 4";
-      if (padded_elements(d, p, algo) > texel_limit) {
+      if (padded_elements(d, p, algo, tr) > texel_limit) {
         return "the padded input exceeds the texel limit";
       }
       return {};
@@ -344,9 +351,9 @@ std::string why_not(Conv2dAlgo algo, const DeviceInfo& info, const Dims& d, cons
   return "unknown variant";
 }
 
-Conv2dAlgo select(const DeviceInfo& info, const Dims& d, const Conv2dParams& p, const char* op) {
+Conv2dAlgo select(const Device& device, const Dims& d, const Conv2dParams& p, const char* op) {
   if (p.algo != Conv2dAlgo::auto_select) {
-    const std::string why = why_not(p.algo, info, d, p);
+    const std::string why = why_not(p.algo, device, d, p);
     if (!why.empty()) {
       throw InvalidArgument(op,
                             std::string("variant ") + conv2d_algo_name(p.algo) +
@@ -359,7 +366,7 @@ Conv2dAlgo select(const DeviceInfo& info, const Dims& d, const Conv2dParams& p, 
   // kernels win (LAVAPIPE.md); a GPU-specific shared-memory variant would be
   // chosen here from info.type.
   for (Conv2dAlgo a : {Conv2dAlgo::pointwise, Conv2dAlgo::depthwise, Conv2dAlgo::blocked}) {
-    if (why_not(a, info, d, p).empty()) return a;
+    if (why_not(a, device, d, p).empty()) return a;
   }
   return Conv2dAlgo::direct;
 }
@@ -410,6 +417,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
                  const Conv2dPadded* x_padded = nullptr, const Conv2dPadded* y_padded = nullptr,
                  const Conv2dPadded* residual_padded = nullptr) {
   const DeviceInfo& info = stream.device().info();
+  const DeviceTraits& tr = stream.device().traits();
   const Tensor& b = bias != nullptr ? *bias : weight;  // unused binding when has_bias == 0
   c.has_bias = bias != nullptr ? 1u : 0u;
   const Tensor& r_plain = residual != nullptr ? *residual : weight;  // unused when has_res == 0
@@ -442,10 +450,10 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       }
       // (pixel block, channel block) pairs, flattened (the shader splits them).
       const bool vec4 = (std::uint64_t(c.h) * c.w) % 4 == 0;
-      const PointwiseTile t = pointwise_tile(c);
+      const PointwiseTile t = pointwise_tile(c, tr);
       const std::uint64_t blocks =
           div_up(std::uint64_t(c.h) * c.w, std::uint64_t(t.px)) * div_up(c.cout, t.co);
-      const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
+      const std::uint32_t wg = group_lanes(blocks * c.n, tr.min_workgroups, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       // y by quads of pixels (the shader's STORE4): plain, or padded with aligned rows.
@@ -465,7 +473,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::blocked: {
-      const BlockedTile t = blocked_tile(c);
+      const BlockedTile t = blocked_tile(c, tr);
       set_padded(c, t);
       const Tensor packed =
           prepacked != nullptr ? *prepacked : pack_weights(stream, weight, c, transposed_weight);
@@ -473,7 +481,7 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       // (pixel block, channel block) pairs, flattened (the shader splits them).
       const std::uint64_t blocks =
           std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * div_up(c.cout, 4 * t.cg);
-      const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
+      const std::uint32_t wg = group_lanes(blocks * c.n, tr.min_workgroups, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       // y by quads of pixels (the shader's STORE4): blocks and rows 4-aligned.
@@ -486,13 +494,13 @@ void run_forward(Stream& stream, Conv2dAlgo algo, const Tensor& x, const Tensor&
       return;
     }
     case Conv2dAlgo::depthwise: {
-      const BlockedTile t = depthwise_tile(c);
+      const BlockedTile t = depthwise_tile(c, tr);
       set_padded(c, t);
       c.pl += std::int32_t(t.sh);  // where pad_input puts x (the shader does not read pl)
       const Tensor xp = x_padded != nullptr ? x_padded->data : pad_input(stream, x, c);
       // (pixel block, channel) pairs, flattened (the shader splits them).
       const std::uint64_t blocks = std::uint64_t(div_up(c.hout, t.ry)) * c.wblocks * c.cout;
-      const std::uint32_t wg = group_lanes(blocks * c.n, kBlockedGroup);
+      const std::uint32_t wg = group_lanes(blocks * c.n, tr.min_workgroups, kBlockedGroup);
       Groups g = groups_1d(div_up(blocks, wg), info);
       g.z = c.n;
       // y by quads of pixels (the shader's STORE4): 1, whole aligned quads in
@@ -561,9 +569,9 @@ Shape conv2d_output_shape(const Shape& x, const Shape& weight, const Conv2dParam
   return Shape{d.n, d.cout, d.hout, d.wout};
 }
 
-Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& weight,
+Conv2dAlgo conv2d_select(const Device& device, const Shape& x, const Shape& weight,
                          const Conv2dParams& p) {
-  return select(info, dims_of("conv2d_select", x, weight, p), p, "conv2d_select");
+  return select(device, dims_of("conv2d_select", x, weight, p), p, "conv2d_select");
 }
 
 bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept {
@@ -588,9 +596,10 @@ Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight) {
 namespace {
 
 // The padded input geometry the blocked or depthwise kernel reads for these shapes.
-Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x, Conv2dAlgo algo) {
+Conv2dPadded padded_layout(const Dims& d, const Conv2dParams& p, const Shape& x, Conv2dAlgo algo,
+                           const DeviceTraits& tr) {
   ConvPush c = push_of(d, p);
-  const BlockedTile t = padded_tile(c, algo);
+  const BlockedTile t = padded_tile(c, algo, tr);
   set_padded(c, t);
   Conv2dPadded l;
   l.shape = x;
@@ -642,7 +651,7 @@ void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weig
                               ", the weight is " + weight.shape().str(),
                           "pack this weight with conv2d_pack_weight (again after it changed)");
   }
-  const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
+  const Conv2dAlgo algo = select(stream.device(), d, p, op);
   const bool reads_padded = algo == Conv2dAlgo::blocked || algo == Conv2dAlgo::depthwise;
   const bool blocked = algo == Conv2dAlgo::blocked, pointwise = algo == Conv2dAlgo::pointwise;
   const auto refuse = [&](const char* what, const char* variants) {
@@ -668,7 +677,7 @@ void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weig
                        r.data.numel() == d.n * r.shape[1] * std::int64_t(r.hp) * std::int64_t(r.wp);
     if (blocked) {
       // In x's padded layout: y must have x's size (a stride-1 'same' conv).
-      const Conv2dPadded want = padded_layout(d, p, xs, algo);
+      const Conv2dPadded want = padded_layout(d, p, xs, algo, stream.device().traits());
       const bool fits = holds && d.hout == d.h && d.wout == d.w && r.hp == want.hp &&
                         r.wp == want.wp && r.top == want.top && r.left == want.left;
       if (!fits) {
@@ -684,7 +693,8 @@ void forward(Stream& stream, const char* op, const Tensor& x, const Tensor& weig
     }
   }
   if (x_padded != nullptr) {
-    if (!x_padded->defined() || !same_layout(*x_padded, padded_layout(d, p, xs, algo))) {
+    if (!x_padded->defined() ||
+        !same_layout(*x_padded, padded_layout(d, p, xs, algo, stream.device().traits()))) {
       throw InvalidArgument(op, "the padded input is not the one this convolution reads",
                             "make it with conv2d_padded_input for the same shapes and params");
     }
@@ -720,9 +730,9 @@ Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& we
                                  const Conv2dParams& p) {
   const char* op = "conv2d_padded_input";
   const Dims d = dims_of(op, x, weight, p);
-  const Conv2dAlgo algo = select(stream.device().info(), d, p, op);
+  const Conv2dAlgo algo = select(stream.device(), d, p, op);
   if (algo != Conv2dAlgo::blocked && algo != Conv2dAlgo::depthwise) return {};
-  Conv2dPadded l = padded_layout(d, p, x, algo);
+  Conv2dPadded l = padded_layout(d, p, x, algo, stream.device().traits());
   l.data =
       Tensor::empty(stream.device(), Shape{d.n * d.cin * std::int64_t(l.hp) * std::int64_t(l.wp)});
   stream.fill(l.data, 0.f);
@@ -801,7 +811,8 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
     c.yw = c.wout;
     const std::string why =
         padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp,
-                        Conv2dAlgo::blocked) > stream.device().info().max_texel_buffer_elements
+                        Conv2dAlgo::blocked,
+                        stream.device().traits()) > stream.device().info().max_texel_buffer_elements
             ? "the padded input exceeds the texel limit"
             : "";
     if (why.empty()) {
@@ -834,7 +845,7 @@ void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
   // groups == 1: the blocked kernel over zero-padded x and dy; else (or when
   // p.algo == direct) one dw element per invocation.
   const bool blocked =
-      p.algo != Conv2dAlgo::direct && why_not(Conv2dAlgo::blocked, info, d, p).empty();
+      p.algo != Conv2dAlgo::direct && why_not(Conv2dAlgo::blocked, stream.device(), d, p).empty();
   if (blocked) {
     set_padded(c);
     const Tensor xp = pad_input(stream, x, c);

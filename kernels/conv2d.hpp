@@ -100,7 +100,7 @@ Shape conv2d_output_shape(const Shape& x, const Shape& weight, const Conv2dParam
 
 // The variant conv2d() runs for these shapes on a device (p.algo when not
 // auto_select, after checking it can run them; else InvalidArgument).
-Conv2dAlgo conv2d_select(const DeviceInfo& info, const Shape& x, const Shape& weight,
+Conv2dAlgo conv2d_select(const Device& device, const Shape& x, const Shape& weight,
                          const Conv2dParams& p);
 
 // An OIHW weight in the layout the blocked and pointwise variants read

@@ -1,8 +1,9 @@
 #include <vkjr2/kernels/check.hpp>
 #include <vkjr2/kernels/elementwise.hpp>
-#include <vkjr2/kernels/reduce.hpp>
 
 #include <string>
+
+#include "internal/channel_ops.hpp"
 
 namespace vkjr2::kernels {
 namespace {
@@ -10,18 +11,13 @@ namespace {
 constexpr std::uint32_t kPerGroup = 1024;      // 256 invocations × 4 elements
 constexpr std::uint32_t kVec4PerGroup = 1024;  // ew_binary4: 256 invocations × 4 vec4
 
-struct UnaryPush {
-  std::uint32_t n;
-  float p0, p1;
-  std::uint32_t hw, channels;
-};
 struct BinaryPush {
   std::uint32_t n, hw, channels;
 };
 struct Binary4Push {
   std::uint32_t n4;
 };
-static_assert(sizeof(UnaryPush) <= 128 && sizeof(BinaryPush) <= 128 && sizeof(Binary4Push) <= 128);
+static_assert(sizeof(BinaryPush) <= 128 && sizeof(Binary4Push) <= 128);
 
 enum class BinaryOp : std::uint32_t { add = 0, sub = 1, mul = 2 };
 
@@ -37,8 +33,9 @@ void binary(Stream& stream, const char* op_name, BinaryOp op, const Tensor& a, c
   require_same_shape(a, out, op_name, "a", "out");
   // The one selection point: vec4 texels when the count and every offset allow
   // them (LAVAPIPE.md: vector gathers from texel buffers, more work per invocation).
-  const bool vec4_ok =
-      n % 4 == 0 && a.vk_offset() % 16 == 0 && b.vk_offset() % 16 == 0 && out.vk_offset() % 16 == 0;
+  const bool vec4_ok = stream.device().traits().vec4_elementwise && n % 4 == 0 &&
+                       a.vk_offset() % 16 == 0 && b.vk_offset() % 16 == 0 &&
+                       out.vk_offset() % 16 == 0;
   if (vec4_ok) {
     static const KernelDef k4{"ew_binary4",
                               {BindingKind::texel, BindingKind::texel, BindingKind::storage},
@@ -69,53 +66,6 @@ void binary_channel(Stream& stream, const char* op_name, BinaryOp op, const Tens
 }
 
 }  // namespace
-
-namespace detail {
-
-ChannelGeometry channel_geometry(const Tensor& x) {
-  const Shape& s = x.shape();
-  ChannelGeometry g;
-  if (s.rank() == 1) {
-    g.channels = std::uint32_t(s[0]);
-    return g;
-  }
-  g.batch = std::uint32_t(s[0]);
-  g.channels = std::uint32_t(s[1]);
-  for (int i = 2; i < s.rank(); ++i) g.hw *= std::uint32_t(s[i]);
-  return g;
-}
-
-void unary(Stream& stream, const char* op_name, UnaryOp op, const Tensor& a, const Tensor* dy,
-           const Tensor* slope, const Tensor& out, float p0, float p1) {
-  static const KernelDef k{
-      "ew_unary",
-      {BindingKind::texel, BindingKind::texel, BindingKind::texel, BindingKind::storage},
-      sizeof(UnaryPush)};
-  const bool backward = dy != nullptr;
-  const std::uint32_t n = require_f32(a, op_name, backward ? "saved tensor" : "x");
-  require_f32(out, op_name, backward ? "dx" : "y");
-  require_same_shape(a, out, op_name, backward ? "saved tensor" : "x", backward ? "dx" : "y");
-  if (backward) {
-    require_f32(*dy, op_name, "dy");
-    require_same_shape(a, *dy, op_name, "saved tensor", "dy");
-  }
-  ChannelGeometry g;
-  if (op == UnaryOp::prelu) {
-    g = channel_geometry(a);
-    require_f32(*slope, op_name, "slope");
-    require_shape(*slope, Shape{std::int64_t(g.channels)}, op_name,
-                  "slope (one value per channel)");
-  }
-  // Unused bindings are bound to `a` (never read).
-  const Tensor& b = backward ? *dy : a;
-  const Tensor& sl = op == UnaryOp::prelu ? *slope : a;
-  stream.dispatch(k, {texel(a), texel(b), texel(sl), vkjr2::out(out)},
-                  UnaryPush{n, p0, p1, g.hw, g.channels},
-                  groups_1d(div_up(n, kPerGroup), stream.device().info()),
-                  {std::uint32_t(op), backward ? 1u : 0u});
-}
-
-}  // namespace detail
 
 void add(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& out) {
   binary(stream, "add", BinaryOp::add, a, b, out);

@@ -44,30 +44,4 @@ void exponential_backward(Stream& stream, const Tensor& y, const Tensor& dy, con
 void logarithm(Stream& stream, const Tensor& x, const Tensor& y);
 void logarithm_backward(Stream& stream, const Tensor& x, const Tensor& dy, const Tensor& dx);
 
-namespace detail {
-
-// Op codes of shaders/ew_unary.comp (shared with kernels/activation.cpp).
-enum class UnaryOp : std::uint32_t {
-  scale_shift = 0,
-  exp = 1,
-  log = 2,
-  relu = 3,
-  leaky_relu = 4,
-  prelu = 5,
-  sigmoid = 6,
-  tanh = 7,
-};
-
-// Forward (dy null): out = f(a). Backward: out = dy · f'(a), a the saved
-// tensor. slope: PReLU's per-channel slope (else null). Checks shapes.
-void unary(Stream& stream, const char* op_name, UnaryOp op, const Tensor& a, const Tensor* dy,
-           const Tensor* slope, const Tensor& out, float p0 = 0.f, float p1 = 0.f);
-
-// Geometry of x as [batch, channels, hw] for channel broadcasts.
-struct ChannelGeometry {
-  std::uint32_t batch = 1, channels = 1, hw = 1;
-};
-ChannelGeometry channel_geometry(const Tensor& x);
-
-}  // namespace detail
 }  // namespace vkjr2::kernels

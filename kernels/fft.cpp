@@ -12,7 +12,9 @@ namespace {
 
 constexpr std::uint32_t kLocalSize = 64;  // fft_common.glsl local_size_x
 constexpr std::uint32_t kPadWhenDivisibleBy = 8;
-constexpr std::uint32_t kMaxLog2Radix = 5;  // radix-32 passes at most
+// The largest radix of one pass, as log2, where no device chooses
+// (fft_supported_length); plans use DeviceTraits::fft_max_log2_radix.
+constexpr std::uint32_t kMaxLog2Radix = 5;  // radix 32
 
 // Mirrors the push-constant block of shaders/fft_common.glsl.
 struct FftPassPush {
@@ -87,9 +89,10 @@ std::array<std::uint32_t, 2> div_magic(std::uint32_t d) {
 // Radices for length n: the power of two in as few passes of ≤ 32 as
 // possible, split evenly (1024 → 32·32, 512 → 32·16, 128 → 16·8), then 3s,
 // 5s, 7s. Fewer passes won on lavapipe: 1024² c2c fell from 3+3 to 2+2 passes
-// and about 1.5× in time.
+// and about 1.5× in time (the largest radix is a device trait).
 // Empty when n has another prime factor (or n == 1).
-bool radices_for(std::uint32_t n, std::vector<std::uint32_t>& radices) {
+bool radices_for(std::uint32_t n, std::vector<std::uint32_t>& radices,
+                 std::uint32_t max_log2_radix = kMaxLog2Radix) {
   radices.clear();
   std::uint32_t twos = 0;
   while (n % 2 == 0) {
@@ -97,7 +100,7 @@ bool radices_for(std::uint32_t n, std::vector<std::uint32_t>& radices) {
     ++twos;
   }
   if (twos > 0) {
-    const std::uint32_t passes = (twos + kMaxLog2Radix - 1) / kMaxLog2Radix;
+    const std::uint32_t passes = (twos + max_log2_radix - 1) / max_log2_radix;
     for (std::uint32_t i = 0; i < passes; ++i) {
       radices.push_back(1u << (twos / passes + (i < twos % passes ? 1 : 0)));
     }
@@ -121,12 +124,14 @@ Tensor twiddle_table(const Device& device, std::uint32_t n) {
   return Tensor::from(device, Shape{std::int64_t(n), 2}, w);
 }
 
-std::uint32_t checked_axis(std::int64_t n, const char* axis, std::vector<std::uint32_t>& radices) {
+std::uint32_t checked_axis(std::int64_t n, const char* axis, std::vector<std::uint32_t>& radices,
+                           std::uint32_t max_log2_radix) {
   const std::string name(axis);
   if (n < 1) {
     throw InvalidArgument("FftPlan", name + " must be >= 1, got " + std::to_string(n));
   }
-  if (n > (std::int64_t{1} << 24) || !radices_for(static_cast<std::uint32_t>(n), radices)) {
+  if (n > (std::int64_t{1} << 24) ||
+      !radices_for(static_cast<std::uint32_t>(n), radices, max_log2_radix)) {
     throw InvalidArgument(
         "FftPlan",
         name + " " + std::to_string(n) +
@@ -208,8 +213,9 @@ FftPlan::FftPlan(const Device& device, const Shape& shape, FftKind kind, FftNorm
     throw InvalidArgument("FftPlan", "batch must be >= 1, got " + shape.str());
   }
   batch_ = batched ? static_cast<std::uint32_t>(std::min<std::int64_t>(shape[0], 1 << 30)) : 1;
-  height_ = checked_axis(shape[-2], "height", column_radices_);
-  width_ = checked_axis(shape[-1], "width", row_radices_);
+  const std::uint32_t max_log2_radix = std::clamp(device.traits().fft_max_log2_radix, 1u, 5u);
+  height_ = checked_axis(shape[-2], "height", column_radices_, max_log2_radix);
+  width_ = checked_axis(shape[-1], "width", row_radices_, max_log2_radix);
   const std::uint64_t floats = 2ull * batch_ * height_ * width_;
   if (floats >= (1ull << 31) || (batched && shape[0] >= (1 << 30))) {
     throw InvalidArgument("FftPlan",

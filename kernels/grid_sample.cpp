@@ -3,6 +3,8 @@
 
 #include <string>
 
+#include "internal/sample.hpp"
+
 namespace vkjr2::kernels {
 namespace {
 

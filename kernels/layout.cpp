@@ -52,7 +52,6 @@ void affine_dispatch(Stream& stream, const Tensor& x, const Tensor& scale, const
 }
 
 // Batches up to this size take whole-plane copies as transfer commands.
-constexpr std::int64_t kMaxCopies = 16;
 
 std::int32_t i32(std::int64_t v) { return static_cast<std::int32_t>(v); }
 
@@ -64,9 +63,10 @@ void region_copy(Stream& stream, const Tensor& x, const Tensor& y, std::int64_t 
   static const KernelDef k{"slice", {BindingKind::texel, BindingKind::storage}, sizeof(SlicePush)};
   const Shape& a = x.shape();
   const Shape& b = y.shape();
-  if (off_y == 0 && off_x == 0 && a[2] == b[2] && a[3] == b[3] && b[0] <= kMaxCopies) {
+  if (off_y == 0 && off_x == 0 && a[2] == b[2] && a[3] == b[3] &&
+      b[0] <= stream.device().traits().max_transfer_copies) {
     // Whole planes (concat, channel slices): one contiguous range per image,
-    // moved by transfer copies (3-4× a shader copy on lavapipe).
+    // moved by transfer copies (3-4× a shader copy on lavapipe; DeviceTraits).
     const std::int64_t hw = a[2] * a[3];
     for (std::int64_t n = 0; n < b[0]; ++n) {
       stream.copy(x.view(Shape{cw * hw}, (n * a[1] + c_src0) * hw),

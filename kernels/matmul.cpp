@@ -35,7 +35,7 @@ void gemm(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& c, con
   const std::uint64_t tiles = std::uint64_t(div_up(push.p_len, tm)) * push.tiles_q;
   // Fewer lanes per group when there are few tiles: a linear layer on one
   // row (the landmark net's fc, 17 tiles) had all of them in one group.
-  const std::uint32_t lanes = group_lanes(tiles, kGroup);
+  const std::uint32_t lanes = group_lanes(tiles, stream.device().traits().min_workgroups, kGroup);
   stream.dispatch(k,
                   {texel(a), texel(b, bvec4 ? VK_FORMAT_R32G32B32A32_SFLOAT : VK_FORMAT_R32_SFLOAT),
                    texel(bias != nullptr ? *bias : a), out(c)},

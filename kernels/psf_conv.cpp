@@ -118,13 +118,6 @@ struct FinishPush {
 };
 static_assert(sizeof(PackPush) <= 128 && sizeof(MacPush) <= 128 && sizeof(FinishPush) <= 128);
 
-constexpr std::int64_t kMaxTemporaryBytes = 96ll << 20;
-// Cost model of psf_conv_path, measured on lavapipe (256² RGB, K = 24, S = 21:
-// direct 2.39 s = 3.4 ns per pixel-tap; FFT path 0.45 s = 3.7 ns per
-// (product image · padded point · log2 points)).
-constexpr double kDirectSecondsPerTap = 3.4e-9;
-constexpr double kFftSecondsPerPointLog = 3.7e-9;
-
 }  // namespace
 
 PsfConvFft::~PsfConvFft() = default;
@@ -253,16 +246,16 @@ void PsfConvFft::forward(Stream& stream, const Tensor& x, const Tensor& beta, co
       {std::uint32_t(c_), params.normalize ? 1u : 0u});
 }
 
-PsfConvPath psf_conv_path(std::int64_t n, std::int64_t c, std::int64_t k, std::int64_t s,
-                          std::int64_t h, std::int64_t w) {
+PsfConvPath psf_conv_path(const DeviceTraits& traits, std::int64_t n, std::int64_t c,
+                          std::int64_t k, std::int64_t s, std::int64_t h, std::int64_t w) {
   const double hp = double(fft_next_length(h + s - 1)), wp = double(fft_next_length(w + s - 1));
-  // Seconds per unit, measured on lavapipe (bench: kernels_bench psf rows).
-  const double direct = double(n * h * w) * double(k * s * s) * kDirectSecondsPerTap;
+  // Seconds per unit (DeviceTraits: measured on lavapipe by the kernels_bench psf rows).
+  const double direct = double(n * h * w) * double(k * s * s) * traits.psf_direct_seconds_per_tap;
   const double fft =
-      double(n * k * (c + 1)) * hp * wp * std::log2(hp * wp) * kFftSecondsPerPointLog;
+      double(n * k * (c + 1)) * hp * wp * std::log2(hp * wp) * traits.psf_fft_seconds_per_point_log;
   const double bytes = double(n * (c + 1)) * hp * wp * 8;  // one kernel's FFT scratch
-  return fft < direct && bytes <= double(kMaxTemporaryBytes) ? PsfConvPath::fft
-                                                             : PsfConvPath::direct;
+  return fft < direct && bytes <= double(traits.psf_fft_max_temporary_bytes) ? PsfConvPath::fft
+                                                                             : PsfConvPath::direct;
 }
 
 }  // namespace vkjr2::kernels

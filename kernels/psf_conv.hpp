@@ -65,11 +65,11 @@ class PsfConvFft {
   std::unique_ptr<FftPlan> forward_, forward_last_, inverse_;
 };
 
-// Which path is cheaper for these shapes, by a cost model measured on
-// lavapipe (docs/sim.md §7): the direct path's work grows as K·S² per pixel,
-// the FFT path's as K·(C + 1)·log(Hp·Wp).
+// Which path is cheaper for these shapes on a device, by the cost model in
+// its DeviceTraits (measured on lavapipe; docs/sim.md §7): the direct path's
+// work grows as K·S² per pixel, the FFT path's as K·(C + 1)·log(Hp·Wp).
 enum class PsfConvPath : std::uint8_t { direct, fft };
-PsfConvPath psf_conv_path(std::int64_t n, std::int64_t c, std::int64_t k, std::int64_t s,
-                          std::int64_t h, std::int64_t w);
+PsfConvPath psf_conv_path(const DeviceTraits& traits, std::int64_t n, std::int64_t c,
+                          std::int64_t k, std::int64_t s, std::int64_t h, std::int64_t w);
 
 }  // namespace vkjr2::kernels

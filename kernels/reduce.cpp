@@ -6,6 +6,8 @@
 #include <algorithm>
 #include <string>
 
+#include "internal/channel_ops.hpp"
+
 namespace vkjr2::kernels {
 namespace {
 
@@ -21,10 +23,7 @@ struct RowsGradPush {
 struct MaxPush {
   std::uint32_t rows, k, n, global_index;
 };
-struct ChannelsPush {
-  std::uint32_t batch, channels, hw;
-};
-static_assert(sizeof(MaxPush) <= 128 && sizeof(ChannelsPush) <= 128);
+static_assert(sizeof(MaxPush) <= 128);
 
 struct RowGeometry {
   std::uint32_t rows, k;
@@ -191,19 +190,4 @@ void sum_channels(Stream& stream, const Tensor& x, const Tensor& out) {
   detail::reduce_channels(stream, x, nullptr, 0, g.batch, g.channels, g.hw, out);
 }
 
-namespace detail {
-
-void reduce_channels(Stream& stream, const Tensor& a, const Tensor* b, std::uint32_t mode,
-                     std::uint32_t batch, std::uint32_t channels, std::uint32_t hw,
-                     const Tensor& out) {
-  static const KernelDef k{"reduce_channels",
-                           {BindingKind::texel, BindingKind::texel, BindingKind::storage},
-                           sizeof(ChannelsPush)};
-  require_subgroup_arithmetic(stream, "reduce_channels");
-  const Tensor& bs = b != nullptr ? *b : a;
-  stream.dispatch(k, {texel(a), texel(bs), vkjr2::out(out)}, ChannelsPush{batch, channels, hw},
-                  subgroup_row_groups(stream, channels, "reduce_channels"), {mode});
-}
-
-}  // namespace detail
 }  // namespace vkjr2::kernels

@@ -40,11 +40,4 @@ void max_all(Stream& stream, const Tensor& x, const Tensor& value, const Tensor&
 // out[c] = Σ_{n,s} x[n, c, s]. For a matrix [M, N] this is the column sum.
 void sum_channels(Stream& stream, const Tensor& x, const Tensor& out);
 
-namespace detail {
-// out[c] = Σ_{n,s} term, term = a (mode 0), a·b (mode 1), a·min(b, 0) (mode 2),
-// over [batch, channels, hw] (shaders/reduce_channels.comp). b may be null for mode 0.
-void reduce_channels(Stream& stream, const Tensor& a, const Tensor* b, std::uint32_t mode,
-                     std::uint32_t batch, std::uint32_t channels, std::uint32_t hw,
-                     const Tensor& out);
-}  // namespace detail
 }  // namespace vkjr2::kernels

@@ -185,7 +185,7 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
                             static_cast<std::uint32_t>(y.left)};
   const bool store4 = ow % 4 == 0 && y.wp % 4 == 0 && y.left % 4 == 0;
   const std::uint64_t items = std::uint64_t(oh) * blocks_x;
-  const std::uint32_t lanes = group_lanes(items);
+  const std::uint32_t lanes = group_lanes(items, stream.device().traits().min_workgroups);
   Groups g = groups_1d(div_up(items, lanes), stream.device().info());
   g.z = static_cast<std::uint32_t>(ys[0]);
   stream.dispatch(k,

@@ -4,12 +4,21 @@
 
 #include <utility>
 
+#include "internal/var_state.hpp"
+
 namespace vkjr2::nets {
 
 Var::Var(Tensor value, bool requires_grad) : state_(std::make_shared<detail::VarState>()) {
   if (!value.defined()) throw InvalidArgument("Var", "the tensor is undefined", "pass a tensor");
   state_->value = std::move(value);
   state_->requires_grad = requires_grad;
+}
+
+bool Var::requires_grad() const noexcept { return state_ && state_->requires_grad; }
+bool Var::has_grad() const noexcept { return state_ && state_->grad.defined(); }
+std::uint64_t Var::version() const noexcept { return state_ ? state_->version : 0; }
+void Var::mark_modified() const noexcept {
+  if (state_) ++state_->version;
 }
 
 const Tensor& Var::value() const {

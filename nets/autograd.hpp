@@ -23,12 +23,7 @@
 namespace vkjr2::nets {
 
 namespace detail {
-struct VarState {
-  Tensor value;
-  Tensor grad;  // undefined until a gradient reaches this Var
-  bool requires_grad = false;
-  std::uint64_t version = 0;  // counts writes to value (Var::mark_modified)
-};
+struct VarState;  // nets/internal/var_state.hpp
 }  // namespace detail
 
 class Var {
@@ -42,10 +37,10 @@ class Var {
   const Tensor& value() const;
   const Shape& shape() const { return value().shape(); }
   std::int64_t numel() const { return value().numel(); }
-  bool requires_grad() const noexcept { return state_ && state_->requires_grad; }
+  bool requires_grad() const noexcept;
   // The accumulated gradient; undefined when no gradient reached this Var.
   const Tensor& grad() const;
-  bool has_grad() const noexcept { return state_ && state_->grad.defined(); }
+  bool has_grad() const noexcept;
   // Drops the accumulated gradient (the next backward starts from zero).
   void zero_grad() const;
   // Replaces the value in place (same shape): loading weights, optimizer
@@ -56,10 +51,8 @@ class Var {
   // loads call mark_modified(); code that writes a parameter's tensor in place
   // by other means must call it too. Caches derived from a Var (packed conv
   // weights, folded layers) compare versions to know when to rebuild.
-  std::uint64_t version() const noexcept { return state_ ? state_->version : 0; }
-  void mark_modified() const noexcept {
-    if (state_) ++state_->version;
-  }
+  std::uint64_t version() const noexcept;
+  void mark_modified() const noexcept;
 
   const std::shared_ptr<detail::VarState>& state() const noexcept { return state_; }
 

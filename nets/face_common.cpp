@@ -82,6 +82,16 @@ Tensor depthwise_weight_from_hwio(const Device& device, const HostTensor& w, con
   return Tensor::from(device, Shape{c * m, 1, kh, kw}, out);
 }
 
+InputAffine mean_rgb_affine(const Device& device, const std::array<float, 3>& mean_rgb) {
+  InputAffine a;
+  a.scale.assign(3, 1.f / 255.f);
+  a.shift.resize(3);
+  for (std::size_t c = 0; c < 3; ++c) a.shift[c] = -mean_rgb[c] / 255.f;
+  a.scale_var = Var(Tensor::from(device, Shape{3}, a.scale));
+  a.shift_var = Var(Tensor::from(device, Shape{3}, a.shift));
+  return a;
+}
+
 Tensor vector_from(const Device& device, const HostTensor& v, std::int64_t expected,
                    const char* name) {
   if (v.numel() != expected || std::int64_t(v.values.size()) != expected) {

@@ -4,9 +4,10 @@
 
 #include <vkjr2/kernels/resize.hpp>
 #include <vkjr2/nets/autograd.hpp>
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 #include <vkjr2/runtime/tensor.hpp>
 
+#include <array>
 #include <filesystem>
 #include <set>
 #include <string>
@@ -31,6 +32,15 @@ Tensor depthwise_weight_from_hwio(const Device& device, const HostTensor& hwio, 
 // A 1-D tensor (bias, scale) of `expected` elements.
 Tensor vector_from(const Device& device, const HostTensor& v, std::int64_t expected,
                    const char* name);
+
+// face-api's input normalization, (x − mean) / 255 per RGB channel, as a
+// channel affine x · scale + shift (scale 1/255, shift −mean/255): the values
+// and the Vars a model's forward applies.
+struct InputAffine {
+  std::vector<float> scale, shift;
+  Var scale_var, shift_var;
+};
+InputAffine mean_rgb_affine(const Device& device, const std::array<float, 3>& mean_rgb);
 
 // HWC (or 1×HWC) float image → device tensor [1, C, H, W]; and back.
 Tensor image_to_device(const Device& device, const HostTensor& hwc);

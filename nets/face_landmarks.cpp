@@ -137,7 +137,7 @@ class FaceLandmark68Net::DenseBlock : public Module {
     const bool first = conv0_ != nullptr
                            ? conv0_->infers(t, x)
                            : !t.needs_grad({&first_filters_, &first_bias_}) &&
-                                 k::conv2d_select(t.device().info(), x, first_filters_.shape(),
+                                 k::conv2d_select(t.device(), x, first_filters_.shape(),
                                                   first_params(x)) == k::Conv2dAlgo::blocked;
     return first && std::all_of(convs_.begin(), convs_.end(),
                                 [&](const SeparableConv3x3* c) { return c->infers(t, o); });
@@ -216,10 +216,9 @@ FaceLandmark68Net::FaceLandmark68Net(const Device& device, const TfjsWeights& we
 
   r.finish();
 
-  std::vector<float> scale(3, 1.f / 255.f), shift(3);
-  for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
-  input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
-  input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+  const InputAffine input = mean_rgb_affine(device, kMeanRgb);
+  input_scale_ = input.scale_var;
+  input_shift_ = input.shift_var;
 
   // Conv weights packed once at load (repacked only if a weight changes).
   Stream stream(device);

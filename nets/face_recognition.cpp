@@ -32,99 +32,7 @@ void require_image(const Var& x, const char* op, const char* name) {
 
 }  // namespace
 
-// ---- the dlib box ------------------------------------------------------------------
-
-FaceBox face_api_dlib_rect(std::span<const double> lm, int image_w, int image_h) {
-  if (lm.size() != 136) {
-    throw InvalidArgument("face_api_chip_box",
-                          "landmarks68_xy holds " + std::to_string(lm.size()) +
-                              " values, expected 136 (68 points × x, y)",
-                          "pass FaceLandmark68Net's 68 points in image pixels");
-  }
-  for (std::size_t i = 0; i < lm.size(); ++i) {
-    if (!std::isfinite(lm[i])) {
-      throw InvalidArgument("face_api_chip_box",
-                            "landmark " + std::to_string(i / 2) + " has a non-finite " +
-                                (i % 2 == 0 ? "x" : "y") + " coordinate",
-                            "check the landmark net's input and output for NaN/Inf");
-    }
-  }
-  if (image_w <= 0 || image_h <= 0) {
-    throw InvalidArgument("face_api_chip_box",
-                          "image size " + std::to_string(image_w) + "×" + std::to_string(image_h) +
-                              " is not positive",
-                          "pass the width and height of the frame the landmarks belong to");
-  }
-  // getCenterPoint: Σ from (0, 0) in order, then divided by the count.
-  const auto centre = [&](std::size_t first, std::size_t last) {
-    double sx = 0, sy = 0;
-    for (std::size_t i = first; i <= last; ++i) {
-      sx += lm[2 * i];
-      sy += lm[2 * i + 1];
-    }
-    const auto n = double(last - first + 1);
-    return std::array<double, 2>{sx / n, sy / n};
-  };
-  const std::array<std::array<double, 2>, 3> centres = {centre(36, 41), centre(42, 47),
-                                                        centre(48, 67)};
-  const auto& mouth = centres[2];
-  const auto dist_to_mouth = [&](const std::array<double, 2>& p) {
-    const double dx = mouth[0] - p[0], dy = mouth[1] - p[1];
-    return std::sqrt(dx * dx + dy * dy);
-  };
-  const double eye_to_mouth = (dist_to_mouth(centres[0]) + dist_to_mouth(centres[1])) / 2;
-  constexpr double kRelX = 0.5, kRelY = 0.43, kRelScale = 0.45;  // FaceLandmarks.ts
-  const double size = std::floor(eye_to_mouth / kRelScale);
-  double rx = 0, ry = 0;
-  for (const auto& c : centres) {
-    rx += c[0];
-    ry += c[1];
-  }
-  rx /= 3;
-  ry /= 3;
-  const double x = std::floor(std::max(0.0, rx - kRelX * size));
-  const double y = std::floor(std::max(0.0, ry - kRelY * size));
-  return FaceBox{x, y, std::min(size, double(image_w) + x), std::min(size, double(image_h) + y)};
-}
-
-FaceBox clip_at_image_borders(const FaceBox& b, int image_w, int image_h) {
-  const double x = std::max(b.x, 0.0), y = std::max(b.y, 0.0);
-  const double w = std::min(b.x + b.width - x, double(image_w) - x);
-  const double h = std::min(b.y + b.height - y, double(image_h) - y);
-  return FaceBox{std::floor(x), std::floor(y), std::floor(w), std::floor(h)};
-}
-
-FaceBox face_api_chip_box(std::span<const double> lm, int image_w, int image_h) {
-  return clip_at_image_borders(face_api_dlib_rect(lm, image_w, image_h), image_w, image_h);
-}
-
-FaceBox face_api_chip_box(std::span<const float> lm, int image_w, int image_h) {
-  const std::vector<double> d(lm.begin(), lm.end());
-  return face_api_chip_box(std::span<const double>(d), image_w, image_h);
-}
-
-// ---- crop, pad, resize ------------------------------------------------------------
-
-Var extract_face(Tape& t, const Var& image, const FaceBox& box) {
-  require_image(image, "extract_face", "image");
-  const Shape& s = image.shape();
-  if (!std::isfinite(box.x) || !std::isfinite(box.y) || !std::isfinite(box.width) ||
-      !std::isfinite(box.height)) {
-    throw InvalidArgument("extract_face", "the face box has a non-finite field",
-                          "pass the box from face_api_chip_box");
-  }
-  const FaceBox c = clip_at_image_borders(box, int(s[3]), int(s[2]));
-  if (c.width <= 0 || c.height <= 0) {
-    throw InvalidArgument("extract_face",
-                          "face box (x " + std::to_string(box.x) + ", y " + std::to_string(box.y) +
-                              ", " + std::to_string(box.width) + "×" + std::to_string(box.height) +
-                              ") lies outside the " + std::to_string(s[3]) + "×" +
-                              std::to_string(s[2]) + " image",
-                          "pass a box that overlaps the image (face-api drops such faces)");
-  }
-  return slice(t, image, k::SliceStart{0, std::int64_t(c.y), std::int64_t(c.x)},
-               Shape{s[0], s[1], std::int64_t(c.height), std::int64_t(c.width)});
-}
+// ---- pad, resize ------------------------------------------------------------
 
 Var to_recognition_input(Tape& t, const Var& chip) {
   require_image(chip, "to_recognition_input", "chip");
@@ -230,7 +138,7 @@ class FaceRecognitionNet::ConvLayer : public Module {
                      &folded_packed_.get(t.stream(), folded_filters_), residual);
   }
   bool runs_blocked(const Tape& t, const Shape& x) const {
-    return k::conv2d_select(t.device().info(), x, filters_.shape(), params(x, true)) ==
+    return k::conv2d_select(t.device(), x, filters_.shape(), params(x, true)) ==
            k::Conv2dAlgo::blocked;
   }
 
@@ -436,11 +344,10 @@ FaceRecognitionNet::FaceRecognitionNet(const Device& device, const TfjsWeights& 
 
   r.finish();
 
-  std::vector<float> scale(3, 1.f / 255.f), shift(3);
-  for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
-  input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
-  input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
-  conv32_down_->fold_input_affine(device, scale, shift);
+  const InputAffine input = mean_rgb_affine(device, kMeanRgb);
+  input_scale_ = input.scale_var;
+  input_shift_ = input.shift_var;
+  conv32_down_->fold_input_affine(device, input.scale, input.shift);
 
   // The scale layers folded into the convs and their weights packed, once at
   // load (again only after a parameter changed).

@@ -11,6 +11,7 @@
 #pragma once
 
 #include <vkjr2/nets/autograd.hpp>
+#include <vkjr2/nets/face_box.hpp>
 #include <vkjr2/nets/face_common.hpp>
 #include <vkjr2/nets/ops.hpp>
 
@@ -23,37 +24,6 @@
 namespace vkjr2::nets {
 
 class TfjsWeights;
-
-// An axis-aligned box in pixels (face-api's Box/Rect: x, y = top-left corner).
-struct FaceBox {
-  double x = 0, y = 0, width = 0, height = 0;
-  bool operator==(const FaceBox&) const = default;
-};
-
-// face-api's dlib alignment rect (FaceLandmarks.alignDlib, what
-// computeFaceDescriptors uses): eye centres = mean of points 36–41 and 42–47,
-// mouth centre = mean of 48–67; size = floor(mean eye-to-mouth distance /
-// 0.45); ref = mean of the three centres; x = floor(max(0, ref.x − 0.5·size)),
-// y = floor(max(0, ref.y − 0.43·size)); width = min(size, image_w + x),
-// height = min(size, image_h + y). Not yet clipped to the image.
-// landmarks68_xy: 136 values x0, y0, x1, y1, … in image pixels.
-FaceBox face_api_dlib_rect(std::span<const double> landmarks68_xy, int image_w, int image_h);
-// face-api's Box.clipAtImageBorders: x, y clamped to ≥ 0, right/bottom to the
-// image, then every field floored. Width/height may come out ≤ 0 (box outside
-// the image: face-api then drops the face).
-FaceBox clip_at_image_borders(const FaceBox& box, int image_w, int image_h);
-// The recognition crop face-api takes: clip_at_image_borders(face_api_dlib_rect(…)).
-// Throws InvalidArgument for a landmark count other than 68 points, non-finite
-// values or a non-positive image size. The double overload reproduces
-// face-api's float64 arithmetic bit for bit; the float one converts first.
-FaceBox face_api_chip_box(std::span<const double> landmarks68_xy, int image_w, int image_h);
-FaceBox face_api_chip_box(std::span<const float> landmarks68_xy, int image_w, int image_h);
-
-// extractFaceTensors for one box: clips `box` to the image like face-api, then
-// slices it out of image [N, C, H, W] (all N images, same box) →
-// [N, C, height, width]. Differentiable (the gradient lands in the box).
-// Throws InvalidArgument when the clipped box is empty (face outside the image).
-Var extract_face(Tape& t, const Var& image_nchw, const FaceBox& box);
 
 // NetInput.toBatchTensor(150, isCenterInputs = true) for one chip [N, 3, h, w]:
 // zero-pad the shorter side to a square — round(diff/2) (JS Math.round, i.e.

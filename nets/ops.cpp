@@ -10,6 +10,8 @@
 
 #include <utility>
 
+#include "internal/var_state.hpp"
+
 namespace vkjr2::nets {
 namespace {
 
@@ -139,8 +141,9 @@ Var mul_channel(Tape& t, const Var& x, const Var& v) {
 }
 
 Var sum_channels(Tape& t, const Var& x) {
-  const auto g = k::detail::channel_geometry(x.value());
-  Tensor y = empty(x, Shape{std::int64_t(g.channels)});
+  // [C] for a vector, else the channels of [N, C, ...] (kernels::sum_channels checks).
+  const Shape& s = x.shape();
+  Tensor y = empty(x, Shape{s.rank() == 1 ? s[0] : s[1]});
   k::sum_channels(t.stream(), x.value(), y);
   return finish(t, y, {&x}, [x](Tape& tape, const Tensor& dy) {
     GradSlot gx = tape.slot(x);
@@ -258,8 +261,8 @@ Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
   const Tensor* b = bias.defined() ? &bias.value() : nullptr;
   const Tensor* r = residual.defined() ? &residual.value() : nullptr;
   const k::Conv2dPackedWeight* packed = nullptr;
-  if (cache != nullptr && k::conv2d_uses_packed_weight(k::conv2d_select(
-                              t.device().info(), x.value().shape(), weight.shape(), p))) {
+  if (cache != nullptr && k::conv2d_uses_packed_weight(
+                              k::conv2d_select(t.device(), x.value().shape(), weight.shape(), p))) {
     packed = &cache->get(t.stream(), weight);
   }
   k::conv2d(t.stream(), x.value(), weight.value(), b, y, p, packed, r);

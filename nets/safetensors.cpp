@@ -10,6 +10,8 @@
 #include <set>
 #include <utility>
 
+#include "internal/half.hpp"
+
 namespace vkjr2::nets {
 namespace {
 
@@ -39,24 +41,6 @@ T load(const std::byte* p) {
   T v;
   std::memcpy(&v, p, sizeof(T));
   return v;
-}
-
-float half_to_float(std::uint16_t h) {
-  const std::uint32_t sign = std::uint32_t(h >> 15) << 31;
-  const std::uint32_t exp = (h >> 10) & 0x1f;
-  const std::uint32_t mant = h & 0x3ff;
-  if (exp == 0) {
-    // Zero or subnormal: mant * 2^-24.
-    const float v = std::ldexp(float(mant), -24);
-    return sign ? -v : v;
-  }
-  std::uint32_t bits = 0;
-  if (exp == 31) {
-    bits = sign | 0x7f800000u | (mant << 13);  // inf / nan
-  } else {
-    bits = sign | ((exp + 112) << 23) | (mant << 13);
-  }
-  return std::bit_cast<float>(bits);
 }
 
 std::string in_quotes(std::string_view s) { return "'" + std::string(s) + "'"; }
@@ -250,7 +234,7 @@ std::vector<float> SafetensorsRecord::to_float() const {
         out[i] = float(load<std::uint16_t>(p));
         break;
       case StDType::F16:
-        out[i] = half_to_float(load<std::uint16_t>(p));
+        out[i] = detail::half_to_float(load<std::uint16_t>(p));
         break;
       case StDType::BF16:
         out[i] = std::bit_cast<float>(std::uint32_t(load<std::uint16_t>(p)) << 16);

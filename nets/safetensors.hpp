@@ -7,7 +7,7 @@
 // optimizer state) and the project's own trained artifacts.
 #pragma once
 
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 
 #include <cstddef>
 #include <cstdint>

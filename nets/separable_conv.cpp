@@ -47,9 +47,10 @@ void SeparableConv3x3::pack(Stream& s) const { pointwise_packed_.get(s, pointwis
 
 bool SeparableConv3x3::infers(const Tape& t, const Shape& x) const {
   if (t.needs_grad({&depthwise_, &pointwise_, &bias_})) return false;
-  const DeviceInfo& info = t.device().info();
-  return k::conv2d_select(info, x, depthwise_.shape(), dw_params(x)) == k::Conv2dAlgo::depthwise &&
-         k::conv2d_select(info, mid_shape(x), pointwise_.shape(),
+  const Device& device = t.device();
+  return k::conv2d_select(device, x, depthwise_.shape(), dw_params(x)) ==
+             k::Conv2dAlgo::depthwise &&
+         k::conv2d_select(device, mid_shape(x), pointwise_.shape(),
                           pw_params(k::Activation::none, 0.f)) == k::Conv2dAlgo::pointwise;
 }
 

@@ -11,6 +11,8 @@
 #include <optional>
 #include <unordered_set>
 
+#include "internal/half.hpp"
+
 namespace vkjr2::nets {
 namespace {
 
@@ -50,19 +52,6 @@ std::string group_label(std::size_t g, const GroupSpec& spec) {
   for (std::size_t i = 0; i < spec.paths.size(); ++i)
     s += (i ? ", " : "") + in_quotes(spec.paths[i]);
   return s + (spec.paths.empty() ? "none)" : ")");
-}
-
-float half_to_float(std::uint16_t h) {
-  const std::uint32_t sign = std::uint32_t(h >> 15) << 31;
-  const std::uint32_t exp = (h >> 10) & 0x1f;
-  const std::uint32_t mant = h & 0x3ff;
-  if (exp == 0) {
-    const float v = std::ldexp(float(mant), -24);
-    return sign ? -v : v;
-  }
-  const std::uint32_t bits =
-      exp == 31 ? (sign | 0x7f800000u | (mant << 13)) : (sign | ((exp + 112) << 23) | (mant << 13));
-  return std::bit_cast<float>(bits);
 }
 
 WeightSpec parse_weight(const nlohmann::json& w, std::string_view source, std::size_t g,
@@ -257,7 +246,7 @@ HostTensor decode(const WeightSpec& w, const std::byte* p) {
       for (std::size_t i = 0; i < n; ++i) {
         std::uint16_t h;
         std::memcpy(&h, p + 2 * i, 2);
-        t.values[i] = half_to_float(h);
+        t.values[i] = detail::half_to_float(h);
       }
       break;
   }

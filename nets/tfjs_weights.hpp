@@ -8,7 +8,7 @@
 // ship.
 #pragma once
 
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 
 #include <cstddef>
 #include <filesystem>

@@ -112,13 +112,6 @@ std::vector<TinyYoloCandidate> decode_tiny_yolo(std::span<const float> output, i
   return out;
 }
 
-double box_iou(const FaceBox& a, const FaceBox& b) {
-  const double w = std::max(0.0, std::min(a.x + a.width, b.x + b.width) - std::max(a.x, b.x));
-  const double h = std::max(0.0, std::min(a.y + a.height, b.y + b.height) - std::max(a.y, b.y));
-  const double inter = w * h;
-  return inter / (a.width * a.height + b.width * b.height - inter);
-}
-
 std::vector<std::size_t> non_max_suppression(std::span<const FaceBox> boxes,
                                              std::span<const double> scores, double iou_threshold) {
   if (boxes.size() != scores.size()) {
@@ -170,10 +163,9 @@ TinyFaceDetector::TinyFaceDetector(const Device& device, const TfjsWeights& weig
 
   r.finish();
 
-  std::vector<float> scale(3, 1.f / 255.f), shift(3);
-  for (std::size_t c = 0; c < 3; ++c) shift[c] = -kMeanRgb[c] / 255.f;
-  input_scale_ = Var(Tensor::from(device, Shape{3}, scale));
-  input_shift_ = Var(Tensor::from(device, Shape{3}, shift));
+  const InputAffine input = mean_rgb_affine(device, kMeanRgb);
+  input_scale_ = input.scale_var;
+  input_shift_ = input.shift_var;
 
   // Conv weights packed once at load (repacked only if a weight changes).
   Stream stream(device);

@@ -13,8 +13,8 @@
 #pragma once
 
 #include <vkjr2/nets/autograd.hpp>
+#include <vkjr2/nets/face_box.hpp>
 #include <vkjr2/nets/face_common.hpp>
-#include <vkjr2/nets/face_recognition.hpp>  // FaceBox
 #include <vkjr2/nets/ops.hpp>
 #include <vkjr2/nets/separable_conv.hpp>
 
@@ -71,9 +71,6 @@ std::vector<TinyYoloCandidate> decode_tiny_yolo(std::span<const float> output, i
 // kept indices in the order they were picked.
 std::vector<std::size_t> non_max_suppression(std::span<const FaceBox> boxes,
                                              std::span<const double> scores, double iou_threshold);
-
-// Intersection over union of two boxes (0 when they do not overlap).
-double box_iou(const FaceBox& a, const FaceBox& b);
 
 class TinyFaceDetector : public Module {
  public:

@@ -2,6 +2,7 @@
 // queue vkjr2 runs on, owned or adopted from a host application.
 #pragma once
 
+#include <vkjr2/runtime/device_traits.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/memory.hpp>
 
@@ -81,6 +82,9 @@ struct DeviceOptions {
   bool force_staging = false;
   // Size of the memory blocks tensors are sub-allocated from.
   std::uint64_t block_bytes = 64ull << 20;
+  // The tuning profile (runtime/device_traits.hpp): "lavapipe" or "gpu".
+  // Empty: VKJR2_DEVICE_TRAITS, else chosen by the device's driver.
+  std::string traits_profile;
   // Called for every validation message (warning or error). Unset: printed
   // to stderr. Counted in Device::validation_message_count() either way.
   std::function<void(std::string_view)> on_validation_message;
@@ -110,6 +114,8 @@ class Device {
   explicit Device(std::shared_ptr<detail::DeviceCore> core);
 
   const DeviceInfo& info() const;
+  // The device-dependent tuning choices the kernels use (device_traits.hpp).
+  const DeviceTraits& traits() const;
   VkInstance vk_instance() const;
   VkPhysicalDevice vk_physical_device() const;
   VkDevice vk_device() const;

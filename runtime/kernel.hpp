@@ -66,11 +66,13 @@ inline Groups groups_1d(std::uint64_t n_groups, const DeviceInfo& info) {
 
 // Lanes per workgroup (a shader's local_size_x_id) for `invocations`
 // invocations: max_lanes, halved down to 8 while that would leave fewer
-// than 4 workgroups, so that every CPU thread gets one (llvmpipe runs a
-// workgroup on one thread).
-inline std::uint32_t group_lanes(std::uint64_t invocations, std::uint32_t max_lanes = 64) {
+// than min_workgroups workgroups (DeviceTraits::min_workgroups: 4 on
+// lavapipe, which runs a workgroup on one CPU thread, so that every thread
+// gets one; 1 on a GPU).
+inline std::uint32_t group_lanes(std::uint64_t invocations, std::uint32_t min_workgroups,
+                                 std::uint32_t max_lanes = 64) {
   std::uint32_t lanes = max_lanes;
-  while (lanes > 8 && invocations < std::uint64_t(lanes) * 4) lanes /= 2;
+  while (lanes > 8 && invocations < std::uint64_t(lanes) * min_workgroups) lanes /= 2;
   return lanes;
 }
 

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <string>
 
+#include "internal/allocator.hpp"
+
 namespace vkjr2::detail {
 namespace {
 

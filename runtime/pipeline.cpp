@@ -1,11 +1,13 @@
 // Pipelines: created lazily, cached per device keyed by (shader, specialization
 // constants); descriptor set layouts shared per binding signature.
-#include <vkjr2/runtime/device_core.hpp>
 #include <vkjr2/runtime/shaders.hpp>
 
 #include <algorithm>
 #include <cstring>
 #include <string>
+#include <utility>
+
+#include "internal/device_core.hpp"
 
 namespace vkjr2::detail {
 namespace {
@@ -60,11 +62,32 @@ VkDescriptorSetLayout DeviceCore::set_layout(const std::vector<BindingKind>& bin
   return layout;
 }
 
+std::size_t PipelineKeyHash::operator()(const PipelineKeyView& k) const noexcept {
+  // FNV-1a over the shader name, then the constants.
+  std::uint64_t h = 14695981039346656037ull;
+  const auto mix = [&h](std::uint64_t v) { h = (h ^ v) * 1099511628211ull; };
+  for (const char c : k.shader) mix(static_cast<unsigned char>(c));
+  mix(k.spec.size());
+  for (const std::uint32_t v : k.spec) mix(v);
+  return static_cast<std::size_t>(h);
+}
+
 const Pipeline& DeviceCore::pipeline(const KernelDef& kernel, std::span<const std::uint32_t> spec) {
-  std::string key(kernel.shader);
-  for (std::uint32_t v : spec) key += ":" + std::to_string(v);
   std::lock_guard lock(pipelines_mutex_);
-  if (auto it = pipelines_.find(key); it != pipelines_.end()) return it->second;
+  if (auto it = pipelines_.find(PipelineKeyView{kernel.shader, spec}); it != pipelines_.end()) {
+    return it->second;
+  }
+  if (spec.size() > kMaxSpecConstants) {
+    throw InvalidArgument(
+        "create pipeline " + std::string(kernel.shader),
+        std::to_string(spec.size()) + " specialization constants, more than " +
+            std::to_string(kMaxSpecConstants),
+        "pass fewer or raise kMaxSpecConstants in runtime/internal/device_core.hpp");
+  }
+  PipelineKey key;
+  key.shader = std::string(kernel.shader);
+  std::copy(spec.begin(), spec.end(), key.spec.begin());
+  key.spec_count = spec.size();
 
   if (kernel.push_bytes > info.max_push_constant_bytes) {
     throw InvalidArgument("create pipeline " + std::string(kernel.shader),
@@ -109,7 +132,7 @@ const Pipeline& DeviceCore::pipeline(const KernelDef& kernel, std::span<const st
   ci.layout = p.layout;
   check(vkCreateComputePipelines(device, pipeline_cache_, 1, &ci, nullptr, &p.pipeline),
         "create pipeline " + std::string(kernel.shader));
-  return pipelines_.emplace(key, p).first->second;
+  return pipelines_.emplace(std::move(key), p).first->second;
 }
 
 // ---- staging ---------------------------------------------------------------

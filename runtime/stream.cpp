@@ -1,11 +1,14 @@
-#include <vkjr2/runtime/device_core.hpp>
 #include <vkjr2/runtime/stream.hpp>
 
 #include <algorithm>
+#include <array>
 #include <bit>
 #include <cstring>
+#include <span>
 #include <string>
 #include <vector>
+
+#include "internal/device_core.hpp"
 
 namespace vkjr2 {
 namespace {
@@ -51,6 +54,9 @@ std::uint32_t format_bytes_of(VkFormat format) {
 }
 
 // A range of a buffer touched by a recorded command since the last barrier.
+// The most bindings one kernel may declare (the dispatch path's fixed arrays).
+constexpr std::size_t kMaxBindings = 16;
+
 struct Touch {
   VkBuffer buffer;
   VkDeviceSize begin;
@@ -131,7 +137,7 @@ struct Stream::Impl {
   // Inserts a barrier when `touches` conflict with accesses since the last
   // one (read-after-write, write-after-read, write-after-write), then records
   // them.
-  void track(const std::vector<Touch>& touches) {
+  void track(std::span<const Touch> touches) {
     bool hazard = false;
     for (const Touch& t : touches) {
       for (const Touch& p : pending) {
@@ -290,25 +296,41 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
                           std::initializer_list<std::uint32_t> spec) {
   Impl& s = *impl_;
   const DeviceInfo& info = s.core->info;
-  const std::string op = "dispatch " + std::string(kernel.shader);
+  // Nothing on this path allocates unless it throws: the error texts are
+  // built only then, the bindings live in fixed arrays, and the pipeline is
+  // found without building a key (DeviceCore::pipeline).
+  const auto op = [&kernel] { return "dispatch " + std::string(kernel.shader); };
   // Asserted at dispatch: binding count and kinds, push-constant size, limits.
   if (args.size() != kernel.bindings.size()) {
-    throw InvalidArgument(op, "got " + std::to_string(args.size()) + " tensors for " +
-                                  std::to_string(kernel.bindings.size()) + " bindings");
+    throw InvalidArgument(op(), "got " + std::to_string(args.size()) + " tensors for " +
+                                    std::to_string(kernel.bindings.size()) + " bindings");
+  }
+  if (args.size() > kMaxBindings) {
+    throw InvalidArgument(op(),
+                          "the kernel declares " + std::to_string(args.size()) +
+                              " bindings, more than the runtime's " + std::to_string(kMaxBindings),
+                          "split the kernel or raise kMaxBindings in runtime/stream.cpp");
+  }
+  if (spec.size() > detail::kMaxSpecConstants) {
+    throw InvalidArgument(
+        op(),
+        std::to_string(spec.size()) + " specialization constants, more than " +
+            std::to_string(detail::kMaxSpecConstants),
+        "pass fewer or raise kMaxSpecConstants in runtime/internal/device_core.hpp");
   }
   if (push_bytes != kernel.push_bytes) {
-    throw InvalidArgument(op, "push constants are " + std::to_string(push_bytes) +
-                                  " bytes, the kernel declares " +
-                                  std::to_string(kernel.push_bytes));
+    throw InvalidArgument(op(), "push constants are " + std::to_string(push_bytes) +
+                                    " bytes, the kernel declares " +
+                                    std::to_string(kernel.push_bytes));
   }
   if (groups.x == 0 || groups.y == 0 || groups.z == 0) {
-    throw InvalidArgument(op, "empty dispatch (0 workgroups): an input has no elements",
+    throw InvalidArgument(op(), "empty dispatch (0 workgroups): an input has no elements",
                           "skip the op for empty inputs");
   }
   const std::uint32_t counts[3] = {groups.x, groups.y, groups.z};
   for (int i = 0; i < 3; ++i) {
     if (counts[i] > info.max_workgroup_count[i]) {
-      throw InvalidArgument(op,
+      throw InvalidArgument(op(),
                             "workgroup count " + std::to_string(counts[i]) + " on axis " +
                                 std::to_string(i) + " exceeds the device limit " +
                                 std::to_string(info.max_workgroup_count[i]),
@@ -316,23 +338,23 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
     }
   }
 
-  std::vector<Touch> touches;
-  std::vector<VkDescriptorBufferInfo> buffer_infos(args.size());
-  std::vector<VkBufferView> views(args.size());
-  std::vector<VkWriteDescriptorSet> writes(args.size());
+  std::array<Touch, kMaxBindings> touches{};
+  std::array<VkDescriptorBufferInfo, kMaxBindings> buffer_infos{};
+  std::array<VkBufferView, kMaxBindings> views{};
+  std::array<VkWriteDescriptorSet, kMaxBindings> writes{};
   std::uint32_t i = 0;
   for (const Arg& a : args) {
-    const std::string what = op + " binding " + std::to_string(i);
+    const auto what = [&op, i] { return op() + " binding " + std::to_string(i); };
     if (a.kind != kernel.bindings[i]) {
-      throw InvalidArgument(what, std::string("is a ") + kind_name(kernel.bindings[i]) +
-                                      " binding, got a " + kind_name(a.kind) + " argument");
+      throw InvalidArgument(what(), std::string("is a ") + kind_name(kernel.bindings[i]) +
+                                        " binding, got a " + kind_name(a.kind) + " argument");
     }
-    if (!a.tensor.defined()) throw InvalidArgument(what, "the tensor is undefined");
+    if (!a.tensor.defined()) throw InvalidArgument(what(), "the tensor is undefined");
     if (a.tensor.storage()->core.get() != s.core) {
-      throw InvalidArgument(what, "the tensor lives on another device");
+      throw InvalidArgument(what(), "the tensor lives on another device");
     }
     if (a.tensor.bytes() == 0) {
-      throw InvalidArgument(what, "tensor " + a.tensor.shape().str() + " is empty",
+      throw InvalidArgument(what(), "tensor " + a.tensor.shape().str() + " is empty",
                             "skip the op for empty inputs");
     }
     const VkDeviceSize offset = a.tensor.vk_offset();
@@ -347,26 +369,26 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
       align = info.min_texel_buffer_offset_alignment;
       const std::uint32_t fb = format_bytes_of(a.format);
       if (fb == 0 || bytes % fb != 0) {
-        throw InvalidArgument(
-            what, "texel format does not divide the tensor's " + std::to_string(bytes) + " bytes");
+        throw InvalidArgument(what(), "texel format does not divide the tensor's " +
+                                          std::to_string(bytes) + " bytes");
       }
       limit = info.max_texel_buffer_elements * fb;
     }
     if (bytes > limit) {
-      throw InvalidArgument(what,
+      throw InvalidArgument(what(),
                             "tensor " + a.tensor.shape().str() + " is " + format_bytes(bytes) +
                                 ", over the device's " + kind_name(a.kind) + " binding limit of " +
                                 format_bytes(limit),
                             "split it into chunks (e.g. fewer images per batch)");
     }
     if (align > 0 && offset % align != 0) {
-      throw InvalidArgument(what,
+      throw InvalidArgument(what(),
                             "view offset " + std::to_string(offset) +
                                 " bytes is not a multiple of the device's alignment " +
                                 std::to_string(align),
                             "start views at aligned element offsets");
     }
-    touches.push_back({a.tensor.vk_buffer(), offset, offset + bytes, a.access != Access::read});
+    touches[i] = {a.tensor.vk_buffer(), offset, offset + bytes, a.access != Access::read};
 
     VkWriteDescriptorSet& w = writes[i];
     w = {VK_STRUCTURE_TYPE_WRITE_DESCRIPTOR_SET};
@@ -385,19 +407,19 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
     ++i;
   }
 
-  const std::vector<std::uint32_t> spec_values(spec);
-  const detail::Pipeline& p = s.core->pipeline(kernel, spec_values);
+  const std::uint32_t n_bindings = i;
+  const detail::Pipeline& p =
+      s.core->pipeline(kernel, std::span<const std::uint32_t>(spec.begin(), spec.size()));
   s.begin();
-  s.track(touches);
+  s.track(std::span<const Touch>(touches.data(), n_bindings));
   vkCmdBindPipeline(s.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.pipeline);
   if (s.core->push_descriptors) {
-    s.core->cmd_push_descriptor_set(s.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0,
-                                    static_cast<std::uint32_t>(writes.size()), writes.data());
+    s.core->cmd_push_descriptor_set(s.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, n_bindings,
+                                    writes.data());
   } else {
     VkDescriptorSet set = s.allocate_set(p.set_layout);
-    for (auto& w : writes) w.dstSet = set;
-    vkUpdateDescriptorSets(s.core->device, static_cast<std::uint32_t>(writes.size()), writes.data(),
-                           0, nullptr);
+    for (std::uint32_t b = 0; b < n_bindings; ++b) writes[b].dstSet = set;
+    vkUpdateDescriptorSets(s.core->device, n_bindings, writes.data(), 0, nullptr);
     vkCmdBindDescriptorSets(s.cmd, VK_PIPELINE_BIND_POINT_COMPUTE, p.layout, 0, 1, &set, 0,
                             nullptr);
   }
@@ -430,8 +452,9 @@ void Stream::copy(const Tensor& src, const Tensor& dst) {
   if (src.bytes() == 0) return;
   Impl& s = *impl_;
   s.begin();
-  s.track({{src.vk_buffer(), src.vk_offset(), src.vk_offset() + src.bytes(), false},
-           {dst.vk_buffer(), dst.vk_offset(), dst.vk_offset() + dst.bytes(), true}});
+  const Touch touches[] = {{src.vk_buffer(), src.vk_offset(), src.vk_offset() + src.bytes(), false},
+                           {dst.vk_buffer(), dst.vk_offset(), dst.vk_offset() + dst.bytes(), true}};
+  s.track(touches);
   VkBufferCopy region{src.vk_offset(), dst.vk_offset(), src.bytes()};
   vkCmdCopyBuffer(s.cmd, src.vk_buffer(), dst.vk_buffer(), 1, &region);
   s.keep.push_back(src.storage());
@@ -446,7 +469,8 @@ void Stream::fill(const Tensor& dst, std::uint32_t bits) {
   }
   Impl& s = *impl_;
   s.begin();
-  s.track({{dst.vk_buffer(), dst.vk_offset(), dst.vk_offset() + dst.bytes(), true}});
+  const Touch touches[] = {{dst.vk_buffer(), dst.vk_offset(), dst.vk_offset() + dst.bytes(), true}};
+  s.track(touches);
   vkCmdFillBuffer(s.cmd, dst.vk_buffer(), dst.vk_offset(), dst.bytes(), bits);
   s.keep.push_back(dst.storage());
 }

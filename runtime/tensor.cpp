@@ -1,9 +1,10 @@
-#include <vkjr2/runtime/device_core.hpp>
 #include <vkjr2/runtime/tensor.hpp>
 
 #include <cstring>
 #include <mutex>
 #include <string>
+
+#include "internal/device_core.hpp"
 
 namespace vkjr2 {
 

@@ -4,6 +4,7 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/field.hpp>
 #include <vkjr2/sim/noll.hpp>
+#include <vkjr2/sim/tilt.hpp>
 
 #include <algorithm>
 #include <cmath>

@@ -193,23 +193,6 @@ double tilt_angle_rad(double a_tilt, double wavelength_m, double aperture_m) {
   return 2 / kPi * a_tilt * wavelength_m / aperture_m;
 }
 
-double tilt_angle_rad(double a_tilt, const Params& params, int channel) {
-  return tilt_angle_rad(a_tilt, channel_wavelength_m(params, channel), params.optics.aperture_m);
-}
-
-double tilt_px(double a_tilt, const Params& params, int channel) {
-  return tilt_angle_rad(a_tilt, params, channel) * params.optics.focal_length_m /
-         pixel_pitch_m(params);
-}
-
-double tilt_angle_variance_rad2(const Params& params, int channel) {
-  const Derived d = derive(params);
-  const ChannelDerived& c = d.channels.at(static_cast<std::size_t>(channel));
-  const double lam_d = c.wavelength_m / params.optics.aperture_m;
-  return std::pow(2 / kPi, 2) * lam_d * lam_d * noll_covariance(2, 2) *
-         std::pow(c.d_over_r0, 5.0 / 3.0);
-}
-
 double g_tilt_constant() {
   // D = 1, r0 = 1: R = 1/2, A = π/4; the integrand is even about u = π, so
   // twice the integral over [0, π] (its u^(5/3) kink at 0 costs Gauss–Legendre
@@ -227,13 +210,6 @@ double g_tilt_constant() {
     return gradient_variance / (4 * kPi * kPi);  // angle = (λ/2π) · gradient
   }();
   return c;
-}
-
-double g_tilt_angle_variance_rad2(const Params& params, int channel) {
-  const Derived d = derive(params);
-  const ChannelDerived& c = d.channels.at(static_cast<std::size_t>(channel));
-  const double lam_d = c.wavelength_m / params.optics.aperture_m;
-  return g_tilt_constant() * lam_d * lam_d * std::pow(c.d_over_r0, 5.0 / 3.0);
 }
 
 }  // namespace vkjr2::sim

@@ -6,8 +6,6 @@
 // are in radians of phase at the wavelength r0 is given for.
 #pragma once
 
-#include <vkjr2/sim/params.hpp>
-
 #include <cstdint>
 #include <random>
 #include <span>
@@ -88,12 +86,7 @@ class NollSampler {
 // wavefront slope is (λ/2π)·∂φ/∂x = (λ/2π)(2a/R) = (2/π) a λ/D radians. The
 // same for Z3 along y.
 double tilt_angle_rad(double a_tilt, double wavelength_m, double aperture_m);
-double tilt_angle_rad(double a_tilt, const Params& params, int channel = 0);
-// The image shift it causes, in pixels: angle · f / pixel pitch.
-double tilt_px(double a_tilt, const Params& params, int channel = 0);
-// One-axis Z-tilt angle variance (2/π)² (λ/D)² ⟨a2²⟩ (D/r0)^(5/3)
-// ≈ 0.182 (λ/D)² (D/r0)^(5/3) rad², for the parameters' channel.
-double tilt_angle_variance_rad2(const Params& params, int channel = 0);
+// (sim/tilt.hpp has the same for a channel of the simulation parameters.)
 // One-axis G-tilt (aperture-averaged phase gradient: the PSF centroid, what a
 // camera sees) angle variance c_G (λ/D)² (D/r0)^(5/3) rad². By the divergence
 // theorem the mean x-gradient is (1/A)∮ φ n_x ds, so its variance is
@@ -101,6 +94,5 @@ double tilt_angle_variance_rad2(const Params& params, int channel = 0);
 // D_φ(2R |sin(u/2)|) du (the ∮ n_x ds = 0 removes the constant of the
 // covariance); c_G ≈ 0.1698, 0.933 of the Z-tilt's 0.1819 (docs/sim.md §3).
 double g_tilt_constant();
-double g_tilt_angle_variance_rad2(const Params& params, int channel = 0);
 
 }  // namespace vkjr2::sim

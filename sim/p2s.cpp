@@ -260,7 +260,7 @@ std::string fmt_double(double v) {
   return buf;
 }
 
-nets::HostTensor host_of(const Tensor& t) {
+vkjr2::HostTensor host_of(const Tensor& t) {
   const auto dims = t.shape().dims();
   return {std::vector<std::int64_t>(dims.begin(), dims.end()), t.download()};
 }
@@ -278,7 +278,7 @@ void save_p2s_model(const std::filesystem::path& path, const PsfBasis& basis, co
                               std::to_string(c.count) + ", j_max " + std::to_string(c.j_max) +
                               ") do not belong together, or the basis is malformed",
                           "save the network trained for this basis");
-  std::map<std::string, nets::HostTensor> tensors;
+  std::map<std::string, vkjr2::HostTensor> tensors;
   tensors["basis.kernels"] = {{basis.count(), s, s}, basis.kernels};
   tensors["basis.variances"] = {{basis.count()}, basis.variances};
   for (const auto& [name, v] : net.named_parameters()) tensors["p2s." + name] = host_of(v.value());
@@ -347,8 +347,8 @@ class ModelReader {
     const nets::SafetensorsRecord* r = file_.find(name);
     if (r == nullptr) fail("tensor \"" + name + "\" is missing");
     if (r->shape != shape)
-      fail("tensor \"" + name + "\" has shape " + nets::shape_str(r->shape) + ", expected " +
-           nets::shape_str(shape));
+      fail("tensor \"" + name + "\" has shape " + vkjr2::shape_str(r->shape) + ", expected " +
+           vkjr2::shape_str(shape));
     used_.insert(name);
     std::vector<float> v = r->to_float();
     for (std::size_t i = 0; i < v.size(); ++i)

@@ -1,5 +1,5 @@
-#include <vkjr2/nets/host_tensor.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 #include <vkjr2/sim/noll.hpp>
 #include <vkjr2/sim/params.hpp>
 #include <vkjr2/sim/quadrature.hpp>
@@ -568,7 +568,7 @@ bool is_yaml(const std::filesystem::path& path) {
 }  // namespace
 
 Params load_params(const std::filesystem::path& path) {
-  const auto bytes = nets::read_file_bytes(path, "sim::load_params");
+  const auto bytes = vkjr2::read_file_bytes(path, "sim::load_params");
   const std::string text(reinterpret_cast<const char*>(bytes.data()), bytes.size());
   return is_yaml(path) ? params_from_yaml(text, path.string())
                        : params_from_json(text, path.string());
@@ -577,8 +577,8 @@ Params load_params(const std::filesystem::path& path) {
 void save_params(const Params& params, const std::filesystem::path& path) {
   validate(params);
   const std::string text = is_yaml(path) ? params_to_yaml(params) : params_to_json(params);
-  nets::write_file_atomic(path, std::as_bytes(std::span(text.data(), text.size())),
-                          "sim::save_params");
+  vkjr2::write_file_atomic(path, std::as_bytes(std::span(text.data(), text.size())),
+                           "sim::save_params");
 }
 
 }  // namespace vkjr2::sim

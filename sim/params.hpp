@@ -7,6 +7,8 @@
 // aperture is spherical and the spherical-wave weightings apply by default.
 #pragma once
 
+#include <vkjr2/sim/zernike.hpp>
+
 #include <filesystem>
 #include <string>
 #include <string_view>
@@ -100,7 +102,6 @@ inline constexpr double kRytovMax = 2.5;      // σ_χ² above: saturated, phase
 inline constexpr double kDOverR0Warn = 20.0;  // the Zernike modes leave too much residual phase
 inline constexpr double kDOverR0Max = 100.0;
 inline constexpr double kNyquistWarn = 0.5;
-inline constexpr int kMaxZernikeModes = 231;  // radial order n ≤ 20
 inline constexpr int kMaxImageSide = 65536;
 
 // Throws InvalidArgument naming the field and the fix on any invalid value

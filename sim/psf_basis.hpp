@@ -11,6 +11,7 @@
 
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/sim/noll.hpp>
+#include <vkjr2/sim/zernike.hpp>
 
 #include <cstdint>
 #include <memory>

@@ -8,6 +8,7 @@
 #include <vkjr2/kernels/warp.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/simulator.hpp>
+#include <vkjr2/sim/tilt.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -23,20 +24,9 @@ constexpr int kMaxPsfChannels = 4;  // psf_conv takes up to 4 channels per call:
 // turbulence seeds' numbers.
 constexpr std::uint64_t kNoiseSalt = 0x9e3779b97f4a7c15ull;
 
-// The relative sampling mismatch the blur model tolerates.
-constexpr double kNyquistTolerance = 0.02;
-
 }  // namespace
 
 Simulator::~Simulator() = default;
-
-std::shared_ptr<const BlurModel> blur_model_for(
-    const std::vector<std::shared_ptr<const BlurModel>>& models, double nyquist) {
-  for (const auto& m : models) {
-    if (m && std::fabs(nyquist / m->nyquist() - 1) <= kNyquistTolerance) return m;
-  }
-  return nullptr;
-}
 
 Simulator::Simulator(const Device& device, const Params& params,
                      std::shared_ptr<const BlurModel> blur, const SimOptions& options)
@@ -126,8 +116,10 @@ Simulator::Simulator(const Device& device, const Params& params,
       g.warped = Tensor::empty(device_, {b, g.count, h, w});
       g.blurred = Tensor::empty(device_, {b, g.count, h, w});
     }
-    if (kernels::psf_conv_path(b, g.count, k, s, h, w) == kernels::PsfConvPath::fft) {
-      g.fft = std::make_unique<kernels::PsfConvFft>(device_, basis, b, g.count, h, w);
+    const DeviceTraits& traits = device_.traits();
+    if (kernels::psf_conv_path(traits, b, g.count, k, s, h, w) == kernels::PsfConvPath::fft) {
+      g.fft = std::make_unique<kernels::PsfConvFft>(device_, basis, b, g.count, h, w,
+                                                    traits.psf_fft_max_temporary_bytes);
     }
   }
 }

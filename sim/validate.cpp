@@ -3,6 +3,7 @@
 #include <vkjr2/sim/noll.hpp>
 #include <vkjr2/sim/phase_screen.hpp>
 #include <vkjr2/sim/short_exposure.hpp>
+#include <vkjr2/sim/tilt.hpp>
 #include <vkjr2/sim/validate.hpp>
 #include <vkjr2/sim/wave_optics.hpp>
 

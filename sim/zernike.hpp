@@ -17,6 +17,9 @@
 
 namespace vkjr2::sim {
 
+// The highest Noll index the simulator samples and models: radial order n ≤ 20.
+inline constexpr int kMaxZernikeModes = 231;
+
 struct ZernikeIndex {
   int n = 0;          // radial order
   int m = 0;          // azimuthal order, m ≥ 0

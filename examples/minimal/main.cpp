@@ -12,7 +12,7 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/runtime/tensor.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/params.hpp>
 #include <vkjr2/sim/simulator.hpp>
 

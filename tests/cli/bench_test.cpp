@@ -1,4 +1,5 @@
-// `vkjr2 bench kernels` as a user runs it (`bench sim`: simulate_test.cpp).
+// `vkjr2 bench` as a user runs it: the launcher, and `bench kernels` end to end
+// (`bench sim`: simulate_test.cpp).
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -49,6 +50,39 @@ TEST(CliBenchKernels, UnknownBenchmarkIsAUsageError) {
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("no-such-kernel"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("fft-256"), std::string::npos) << r.output;  // lists the known ones
+}
+
+TEST(CliBench, HelpListsTheBenchmarks) {
+  const auto r = run_cli("bench --help");
+  EXPECT_EQ(r.code, 0) << r.output;
+  for (const char* name : {"sim_bench", "kernels_bench", "runtime_bench", "nets_bench"}) {
+    EXPECT_NE(r.output.find(name), std::string::npos) << name << "\n" << r.output;
+  }
+}
+
+TEST(CliBench, UnknownOrMissingBenchmarkIsAUsageError) {
+  auto r = run_cli("bench gpu");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("gpu"), std::string::npos) << r.output;
+  r = run_cli("bench");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
+// The launcher runs the program VKJR2_BENCH_DIR names first, as
+// "vkjr2 bench NAME", with the options after NAME untouched, and its exit
+// code is the command's.
+TEST(CliBench, RunsTheProgramWithItsOptions) {
+  TempDir tmp("bench_launcher");
+  const fs::path program = tmp.path / "sim_bench";
+  {
+    std::ofstream f(program);
+    f << "#!/bin/sh\necho \"argv0=$0 args=$*\"\nexit 7\n";
+  }
+  fs::permissions(program, fs::perms::owner_all);
+  const auto r =
+      run_cli("bench sim --sizes 64 --frames 1 --json", "VKJR2_BENCH_DIR=" + tmp.path.string());
+  EXPECT_EQ(r.code, 7) << r.output;
+  EXPECT_NE(r.output.find("args=--sizes 64 --frames 1 --json"), std::string::npos) << r.output;
 }
 
 }  // namespace

@@ -25,6 +25,17 @@ TEST(Cli, DevicesListsLavapipe) {
   EXPECT_EQ(r.code, 0) << r.output;
   EXPECT_NE(r.output.find("llvmpipe"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("subgroup size"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("tuning          lavapipe (measured"), std::string::npos) << r.output;
+}
+
+TEST(Cli, DevicesTuningFollowsTheOverride) {
+  const Result gpu = run("devices --json", "VKJR2_DEVICE_TRAITS=gpu");
+  EXPECT_EQ(gpu.code, 0) << gpu.output;
+  EXPECT_NE(gpu.output.find("\"tuning\": \"gpu\""), std::string::npos) << gpu.output;
+  const Result bad = run("devices", "VKJR2_DEVICE_TRAITS=fast");
+  EXPECT_NE(bad.code, 0) << bad.output;
+  EXPECT_NE(bad.output.find("VKJR2_DEVICE_TRAITS"), std::string::npos) << bad.output;
+  EXPECT_NE(bad.output.find("'lavapipe' or 'gpu'"), std::string::npos) << bad.output;
 }
 
 TEST(Cli, DevicesJson) {

@@ -2,7 +2,7 @@
 // face-api, 1:N identification of mildly blurred probes, and gradients from
 // the descriptor back to the frame's pixels through the alignment.
 #include <vkjr2/jr2/faces.hpp>
-#include <vkjr2/nets/npy.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <gtest/gtest.h>
 
@@ -19,7 +19,7 @@ namespace {
 std::size_t flat(std::int64_t i) { return static_cast<std::size_t>(i); }
 
 namespace fs = std::filesystem;
-using nets::HostTensor;
+using vkjr2::HostTensor;
 
 const FaceAnalyzer& analyzer() {
   static const FaceAnalyzer a(test::device());
@@ -69,7 +69,7 @@ TEST(Jr2Faces, BlurredProbesFindTheirFaceAtRankOne) {
     for (const auto& det : im["detections"]) {
       const std::string id = im["name"].get<std::string>() + "_f" + std::to_string(k++);
       const HostTensor chip =
-          nets::read_npy(test::parity_dir() / det["recognition_150"].get<std::string>());
+          vkjr2::read_npy(test::parity_dir() / det["recognition_150"].get<std::string>());
       gallery.push_back(
           {id, id, analyzer().describe_chip(s, nets::image_to_device(test::device(), chip))});
       probes.emplace_back(id, gaussian_blur(chip, 1.0));
@@ -92,7 +92,7 @@ TEST(Jr2Faces, PipelineAgreesWithFaceApiOnSample1) {
   const auto index = test::parity_index();
   ASSERT_TRUE(index.contains("images"));
   const auto& im = index["images"][0];
-  const HostTensor pixels = nets::read_npy(test::parity_dir() / im["pixels"].get<std::string>());
+  const HostTensor pixels = vkjr2::read_npy(test::parity_dir() / im["pixels"].get<std::string>());
   Stream s(test::device());
   const auto faces = analyzer().analyze(s, nets::image_to_device(test::device(), pixels), {});
   const auto& ref = im["detections"];
@@ -117,7 +117,7 @@ TEST(Jr2Faces, EmbeddingGradientReachesTheFramePixels) {
   const auto index = test::parity_index();
   ASSERT_TRUE(index.contains("images"));
   const auto& det = index["images"][0]["detections"][0];
-  const HostTensor frame = nets::read_npy(test::parity_dir() / det["chip"].get<std::string>());
+  const HostTensor frame = vkjr2::read_npy(test::parity_dir() / det["chip"].get<std::string>());
   // Landmarks in the chip's own coordinates.
   const double ox = det["chip_box"]["x"], oy = det["chip_box"]["y"];
   std::vector<float> lm;

@@ -205,7 +205,7 @@ std::vector<Conv2dAlgo> runnable(const Device& dev, const Case& c) {
     Conv2dParams p = c.p;
     p.algo = a;
     try {
-      kernels::conv2d_select(dev.info(), x_shape(c.d), w_shape(c.d, c.p.groups), p);
+      kernels::conv2d_select(dev, x_shape(c.d), w_shape(c.d, c.p.groups), p);
       algos.push_back(a);
     } catch (const InvalidArgument&) {
     }
@@ -341,7 +341,7 @@ void check_padded_chain(const Case& c, std::uint32_t seed) {
   Stream s(dev);
   const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, ys, ws2, p2);
   if (!xp.defined()) {  // 1 input channel: the consumer runs depthwise, reading x unpadded
-    EXPECT_NE(kernels::conv2d_select(dev.info(), ys, ws2, p2), Conv2dAlgo::blocked);
+    EXPECT_NE(kernels::conv2d_select(dev, ys, ws2, p2), Conv2dAlgo::blocked);
     return;
   }
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
@@ -572,22 +572,25 @@ TEST(Conv2d, SamePaddingFollowsTensorFlow) {
 }
 
 TEST(Conv2d, SelectsTheSpecializedVariants) {
-  const DeviceInfo& info = test::device().info();
+  const Device& device = test::device();
   Conv2dParams p;
-  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 1, 1}, p),
+  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 64, 1, 1}, p),
             Conv2dAlgo::pointwise);
   p.pad = {1, 1, 1, 1};
-  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::blocked);
+  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 64, 3, 3}, p),
+            Conv2dAlgo::blocked);
   p.groups = 64;
-  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 1, 3, 3}, p), Conv2dAlgo::depthwise);
+  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 1, 3, 3}, p),
+            Conv2dAlgo::depthwise);
   p.relu_input = true;
   p.groups = 64;
-  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 1, 3, 3}, p), Conv2dAlgo::depthwise);
+  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 1, 3, 3}, p),
+            Conv2dAlgo::depthwise);
   p.groups = 1;  // only the direct and depthwise variants take an input ReLU
-  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::direct);
+  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::direct);
   p.relu_input = false;
   p.groups = 2;
-  EXPECT_EQ(kernels::conv2d_select(info, {1, 64, 32, 32}, {64, 32, 3, 3}, p), Conv2dAlgo::direct);
+  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 32, 3, 3}, p), Conv2dAlgo::direct);
 }
 
 TEST(Conv2d, BadInputsAreClearErrors) {

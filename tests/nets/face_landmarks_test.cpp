@@ -3,9 +3,9 @@
 // the crop face-api fed the net, its 112×112 input, the raw 136 outputs, the
 // relative landmarks and the landmarks in image pixels.
 #include <vkjr2/nets/face_landmarks.hpp>
-#include <vkjr2/nets/npy.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

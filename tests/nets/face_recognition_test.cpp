@@ -1,10 +1,11 @@
 // FaceRecognitionNet against face-api itself (references written by
 // tests/parity/face_api_reference.mjs into $VKJR2_CACHE_DIR/parity), plus the
 // dlib-box crop, the chip → 150×150 preprocessing, pixel gradients and bad input.
+#include <vkjr2/jr2/align.hpp>
 #include <vkjr2/nets/face_recognition.hpp>
-#include <vkjr2/nets/npy.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
@@ -229,10 +230,11 @@ TEST(FaceRecognitionNet, ChipBoxAndCropMatchFaceApi) {
   Var image;
   for (const RefFace& f : faces) {
     SCOPED_TRACE(f.name);
-    EXPECT_EQ(face_api_dlib_rect(f.landmarks, f.image_w, f.image_h), f.chip_rect);
-    EXPECT_EQ(face_api_chip_box(f.landmarks, f.image_w, f.image_h), f.chip_box);
+    EXPECT_EQ(jr2::face_api_dlib_rect(f.landmarks, f.image_w, f.image_h), f.chip_rect);
+    EXPECT_EQ(jr2::face_api_chip_box(f.landmarks, f.image_w, f.image_h), f.chip_box);
     const std::vector<float> lm32(f.landmarks.begin(), f.landmarks.end());
-    EXPECT_EQ(face_api_chip_box(std::span<const float>(lm32), f.image_w, f.image_h), f.chip_box);
+    EXPECT_EQ(jr2::face_api_chip_box(std::span<const float>(lm32), f.image_w, f.image_h),
+              f.chip_box);
 
     if (loaded != f.image_npy) {
       image = Var(image_to_device(test::device(), read_npy(test::parity_dir() / f.image_npy)));
@@ -452,12 +454,12 @@ TEST(FaceRecognitionNet, RejectsBadInput) {
   expect_bad(Shape{3, 150, 150});
 
   std::vector<double> lm(100, 1.0);
-  EXPECT_THROW(face_api_chip_box(lm, 640, 480), InvalidArgument);
+  EXPECT_THROW(jr2::face_api_chip_box(lm, 640, 480), InvalidArgument);
   lm.assign(136, 10.0);
   lm[73] = std::nan("");
-  EXPECT_THROW(face_api_chip_box(lm, 640, 480), InvalidArgument);
+  EXPECT_THROW(jr2::face_api_chip_box(lm, 640, 480), InvalidArgument);
   lm[73] = 10.0;
-  EXPECT_THROW(face_api_chip_box(lm, 0, 480), InvalidArgument);
+  EXPECT_THROW(jr2::face_api_chip_box(lm, 0, 480), InvalidArgument);
 }
 
 }  // namespace

@@ -2,10 +2,10 @@
 // tests/parity/face_api_reference.mjs (scripts/setup) hold, per sample photo,
 // the decoded pixels, the 416×416 network input, the raw 13×13×25 output and
 // the candidate boxes before and after NMS.
-#include <vkjr2/nets/npy.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/nets/tiny_face_detector.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>

@@ -1,6 +1,7 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/field.hpp>
 #include <vkjr2/sim/noll.hpp>
+#include <vkjr2/sim/tilt.hpp>
 #include <vkjr2/sim/validate.hpp>
 
 #include <gtest/gtest.h>

@@ -1,6 +1,7 @@
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/sim/noll.hpp>
 #include <vkjr2/sim/params.hpp>
+#include <vkjr2/sim/tilt.hpp>
 #include <vkjr2/sim/zernike.hpp>
 
 #include <gtest/gtest.h>

@@ -1,9 +1,9 @@
 // The P2S network: shapes, a tiny training run that must beat the mean-PSF
 // baseline, the one-file artifact (round trip, truncated, wrong shapes, NaN,
 // extra tensors) and make_p2s_artifact end to end.
-#include <vkjr2/nets/host_tensor.hpp>
 #include <vkjr2/nets/safetensors.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 #include <vkjr2/sim/noll.hpp>
 #include <vkjr2/sim/p2s.hpp>
 
@@ -78,7 +78,7 @@ class P2s : public ::testing::Test {
   static fs::path edited(const std::string& name, Edit edit) {
     fs::path p = saved(name);
     const nets::SafetensorsFile f = nets::read_safetensors(p);
-    std::map<std::string, nets::HostTensor> t;
+    std::map<std::string, vkjr2::HostTensor> t;
     for (const auto& r : f.tensors) t[r.name] = r.to_host();
     edit(t);
     nets::write_safetensors_f32(p, t, f.metadata);
@@ -185,7 +185,7 @@ TEST_F(P2s, WrongShapesAreRejected) {
                     "p2s.l3.bias");
   expect_load_error(edited("extra.safetensors",
                            [](auto& t) {
-                             t["p2s.l4.weight"] = nets::HostTensor{{1}, {0.f}};
+                             t["p2s.l4.weight"] = vkjr2::HostTensor{{1}, {0.f}};
                            }),
                     "p2s.l4.weight");
 }
@@ -207,7 +207,7 @@ TEST_F(P2s, NonFiniteValuesAreRejected) {
 
 TEST_F(P2s, OtherSafetensorsFilesAreRejected) {
   const fs::path p = dir_ / "other.safetensors";
-  nets::write_safetensors_f32(p, {{"w", nets::HostTensor{{2}, {1.f, 2.f}}}});
+  nets::write_safetensors_f32(p, {{"w", vkjr2::HostTensor{{2}, {1.f, 2.f}}}});
   expect_load_error(p, "format");
 }
 

@@ -1,7 +1,8 @@
 #include <vkjr2/kernels/ref/warp_ref.hpp>
 #include <vkjr2/runtime/error.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
+#include <vkjr2/sim/tilt.hpp>
 
 #include <gtest/gtest.h>
 

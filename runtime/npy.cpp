@@ -1,10 +1,10 @@
-#include <vkjr2/nets/npy.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <bit>
 #include <cstring>
 #include <string>
 
-namespace vkjr2::nets {
+namespace vkjr2 {
 namespace {
 
 static_assert(
@@ -295,4 +295,4 @@ void write_npy(const std::filesystem::path& path, const HostTensor& tensor) {
   write_file_atomic(path, bytes, kWriteOp);
 }
 
-}  // namespace vkjr2::nets
+}  // namespace vkjr2

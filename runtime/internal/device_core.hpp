@@ -3,16 +3,22 @@
 
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/kernel.hpp>
-#include <vkjr2/runtime/memory.hpp>
 
 #include <vulkan/vulkan.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <span>
 #include <string>
+#include <string_view>
+#include <unordered_map>
 #include <vector>
+
+#include "allocator.hpp"
 
 namespace vkjr2::detail {
 
@@ -20,6 +26,42 @@ struct Pipeline {
   VkPipeline pipeline = VK_NULL_HANDLE;
   VkPipelineLayout layout = VK_NULL_HANDLE;
   VkDescriptorSetLayout set_layout = VK_NULL_HANDLE;
+};
+
+// The most specialization constants one dispatch may set.
+inline constexpr std::size_t kMaxSpecConstants = 16;
+
+// A pipeline's identity: the shader and its specialization constants. Looked
+// up through PipelineKeyView, which borrows both, so that finding a pipeline
+// that exists allocates nothing.
+struct PipelineKey {
+  std::string shader;
+  std::array<std::uint32_t, kMaxSpecConstants> spec{};
+  std::size_t spec_count = 0;
+};
+struct PipelineKeyView {
+  std::string_view shader;
+  std::span<const std::uint32_t> spec;
+};
+struct PipelineKeyHash {
+  using is_transparent = void;
+  std::size_t operator()(const PipelineKeyView& k) const noexcept;
+  std::size_t operator()(const PipelineKey& k) const noexcept {
+    return (*this)(PipelineKeyView{k.shader, {k.spec.data(), k.spec_count}});
+  }
+};
+struct PipelineKeyEqual {
+  using is_transparent = void;
+  static PipelineKeyView view(const PipelineKey& k) noexcept {
+    return {k.shader, {k.spec.data(), k.spec_count}};
+  }
+  static const PipelineKeyView& view(const PipelineKeyView& k) noexcept { return k; }
+  template <class A, class B>
+  bool operator()(const A& a, const B& b) const noexcept {
+    const PipelineKeyView x = view(a), y = view(b);
+    return x.shader == y.shader &&
+           std::equal(x.spec.begin(), x.spec.end(), y.spec.begin(), y.spec.end());
+  }
 };
 
 struct KernelTime {
@@ -56,6 +98,7 @@ class DeviceCore {
   VkQueue queue = VK_NULL_HANDLE;
   std::uint32_t queue_family = 0;
   DeviceInfo info;
+  DeviceTraits traits;
   bool owns_instance = false;
   bool owns_device = false;
   bool validation = false;
@@ -83,7 +126,7 @@ class DeviceCore {
   std::vector<std::string> messages_;
 
   std::mutex pipelines_mutex_;
-  std::map<std::string, Pipeline> pipelines_;
+  std::unordered_map<PipelineKey, Pipeline, PipelineKeyHash, PipelineKeyEqual> pipelines_;
   std::map<std::vector<BindingKind>, VkDescriptorSetLayout> set_layouts_;
   std::map<std::string, VkPipelineLayout, std::less<>> pipeline_layouts_;
   std::map<std::string, VkShaderModule, std::less<>> modules_;
@@ -124,7 +167,14 @@ struct Storage {
   }
 };
 
-// Fills a DeviceInfo from the physical device (used by list_devices too).
+// device_query.cpp: the loader and the physical devices. An instance (with
+// the validation layer and a debug messenger when asked), the physical
+// devices (NoDeviceError naming the driver to install when there is none), a
+// DeviceInfo filled from one (used by list_devices too).
+VkInstance create_instance(bool validation, const VkDebugUtilsMessengerCreateInfoEXT* messenger);
+std::vector<VkPhysicalDevice> physical_devices(VkInstance instance);
+// The queue family with compute, preferring one with timestamps (UINT32_MAX: none).
+std::uint32_t compute_family(VkPhysicalDevice physical_device);
 DeviceInfo query_device_info(VkPhysicalDevice physical_device, std::uint32_t index);
 // Memory types for tensors (unified: mappable device-local) and for staging.
 MemoryChoice choose_tensor_memory(VkPhysicalDevice physical_device, bool unified);

@@ -1,4 +1,4 @@
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -7,7 +7,7 @@
 
 #include "support/test_device.hpp"
 
-namespace vkjr2::nets {
+namespace vkjr2 {
 namespace {
 
 namespace fs = std::filesystem;
@@ -65,4 +65,4 @@ TEST(HostTensor, UploadsToDevice) {
 }
 
 }  // namespace
-}  // namespace vkjr2::nets
+}  // namespace vkjr2

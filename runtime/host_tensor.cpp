@@ -1,4 +1,4 @@
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -10,7 +10,7 @@
 #include <system_error>
 #include <utility>
 
-namespace vkjr2::nets {
+namespace vkjr2 {
 
 std::int64_t HostTensor::numel() const { return checked_numel(shape, "HostTensor shape"); }
 
@@ -28,13 +28,13 @@ std::int64_t checked_numel(std::span<const std::int64_t> dims, std::string_view 
   std::int64_t n = 1;
   for (std::int64_t d : dims) {
     if (d < 0) {
-      throw InvalidArgument("nets::checked_numel",
+      throw InvalidArgument("checked_numel",
                             std::string(what) + " has a negative dimension in " + shape_str(dims),
                             "dimensions must be >= 0");
     }
     std::int64_t next = 0;
     if (__builtin_mul_overflow(n, d, &next) || next > max_numel) {
-      throw InvalidArgument("nets::checked_numel",
+      throw InvalidArgument("checked_numel",
                             std::string(what) + " shape " + shape_str(dims) +
                                 " has more elements than the data can hold (limit " +
                                 std::to_string(max_numel) + ")",
@@ -122,4 +122,4 @@ void write_file_atomic(const std::filesystem::path& path, std::span<const std::b
   if (::rename(tmp.c_str(), path.c_str()) != 0) fail("rename of the temporary file failed");
 }
 
-}  // namespace vkjr2::nets
+}  // namespace vkjr2

@@ -1,5 +1,5 @@
 #include <vkjr2/runtime/error.hpp>
-#include <vkjr2/sim/blur_model.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
 
 #include <gtest/gtest.h>

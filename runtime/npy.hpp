@@ -6,14 +6,14 @@
 // references.
 #pragma once
 
-#include <vkjr2/nets/host_tensor.hpp>
+#include <vkjr2/runtime/host_tensor.hpp>
 
 #include <cstddef>
 #include <filesystem>
 #include <span>
 #include <string_view>
 
-namespace vkjr2::nets {
+namespace vkjr2 {
 
 // Reads '<f4', '<f8', '|u1' (also '<u1'), '<i4' arrays of any rank >= 0 in C
 // order and converts them to float32. Throws InvalidArgument naming the file
@@ -31,4 +31,4 @@ std::vector<std::byte> serialize_npy(const HostTensor& tensor);
 // Throws InvalidArgument if values.size() does not match the shape.
 void write_npy(const std::filesystem::path& path, const HostTensor& tensor);
 
-}  // namespace vkjr2::nets
+}  // namespace vkjr2

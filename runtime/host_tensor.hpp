@@ -14,7 +14,7 @@
 #include <string_view>
 #include <vector>
 
-namespace vkjr2::nets {
+namespace vkjr2 {
 
 struct HostTensor {
   std::vector<std::int64_t> shape;  // any rank >= 0; rank 0 holds one value
@@ -48,14 +48,14 @@ inline Tensor to_device(const Device& device, const HostTensor& host, std::strin
   const std::string what =
       name.empty() ? std::string("host tensor") : "'" + std::string(name) + "'";
   if (host.shape.size() > std::size_t(Shape::kMaxRank)) {
-    throw InvalidArgument("nets::to_device",
+    throw InvalidArgument("to_device",
                           what + " has rank " + std::to_string(host.shape.size()) + " (shape " +
                               shape_str(host.shape) + "), device tensors hold at most " +
                               std::to_string(Shape::kMaxRank) + " dimensions",
                           "reshape it on the host (merge leading dimensions) before uploading");
   }
   if (std::int64_t(host.values.size()) != host.numel()) {
-    throw InvalidArgument("nets::to_device",
+    throw InvalidArgument("to_device",
                           what + " holds " + std::to_string(host.values.size()) +
                               " values but its shape " + shape_str(host.shape) + " needs " +
                               std::to_string(host.numel()),
@@ -66,4 +66,4 @@ inline Tensor to_device(const Device& device, const HostTensor& host, std::strin
   return Tensor::from(device, shape, host.values);
 }
 
-}  // namespace vkjr2::nets
+}  // namespace vkjr2

@@ -1,4 +1,4 @@
-#include <vkjr2/nets/npy.hpp>
+#include <vkjr2/runtime/npy.hpp>
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -8,7 +8,7 @@
 #include <filesystem>
 #include <string>
 
-namespace vkjr2::nets {
+namespace vkjr2 {
 namespace {
 
 namespace fs = std::filesystem;
@@ -177,4 +177,4 @@ TEST(Npy, RejectsBadFiles) {
 }
 
 }  // namespace
-}  // namespace vkjr2::nets
+}  // namespace vkjr2
