@@ -38,8 +38,9 @@ void run(const Args& a) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  vkjr2::cli::start_program();
+namespace {
+
+int run(int argc, char** argv) {
   CLI::App app{"Kernels vs OpenCV, FFTW and plain C++ on this machine (bench/kernels_bench)",
                "vkjr2 bench kernels"};
   vkjr2::cli::add_logging_options(app);
@@ -62,4 +63,16 @@ int main(int argc, char** argv) {
   app.add_flag("--json", a.json_out, "Print the JSON after the table");
   app.callback([&a] { run(a); });
   return vkjr2::cli::run_program(app, argc, argv);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vkjr2::cli::start_program();
+  try {
+    return run(argc, argv);
+  } catch (...) {  // building the parser itself failed (out of memory)
+    vkjr2::cli::print_error("unexpected failure while starting");
+    return 1;
+  }
 }

@@ -185,9 +185,10 @@ void run_bench_sim(const BenchSimArgs& a) {
 }  // namespace
 }  // namespace vkjr2::cli
 
-int main(int argc, char** argv) {
+namespace {
+
+int run(int argc, char** argv) {
   using namespace vkjr2::cli;
-  start_program();
   CLI::App app{
       "Fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)",
       "vkjr2 bench sim"};
@@ -217,4 +218,16 @@ int main(int argc, char** argv) {
   app.add_flag("--json", a.json_out, "Print the JSON after the table");
   app.callback([&a] { run_bench_sim(a); });
   return run_program(app, argc, argv);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  vkjr2::cli::start_program();
+  try {
+    return run(argc, argv);
+  } catch (...) {  // building the parser itself failed (out of memory)
+    vkjr2::cli::print_error("unexpected failure while starting");
+    return 1;
+  }
 }
