@@ -15,6 +15,7 @@
 namespace {
 
 namespace fs = std::filesystem;
+using namespace vkjr2;
 using namespace vkjr2::nets;
 
 std::vector<std::byte> bytes_of(const std::string& s) {
