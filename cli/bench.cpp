@@ -44,11 +44,11 @@ constexpr std::array<Benchmark, 4> kBenchmarks{{
     {"nets", "nets_bench", "the face networks against face-api on TF.js WASM and OpenCV DNN"},
 }};
 
-const Benchmark& benchmark_named(const std::string& name) {
+const Benchmark* find_benchmark(std::string_view name) {
   for (const Benchmark& b : kBenchmarks) {
-    if (name == b.name) return b;
+    if (name == b.name) return &b;
   }
-  throw UsageError("bench", "unknown benchmark '" + name + "'", "run `vkjr2 bench --help`");
+  return nullptr;
 }
 
 // Where the program may be: $VKJR2_BENCH_DIR, else beside this executable in
@@ -99,16 +99,11 @@ std::vector<fs::path> candidates(const char* program) {
 
 }  // namespace
 
-bool is_benchmark(std::string_view name) {
-  for (const Benchmark& b : kBenchmarks) {
-    if (name == b.name) return true;
-  }
-  return false;
-}
+bool is_benchmark(std::string_view name) { return find_benchmark(name) != nullptr; }
 
 int run_benchmark(std::string_view name, int argc, char** argv) {
   try {
-    run_benchmark(benchmark_named(std::string(name)), std::vector<std::string>(argv, argv + argc));
+    run_benchmark(*find_benchmark(name), std::vector<std::string>(argv, argv + argc));
   } catch (const Error& e) {
     print_error(describe_error(e));
   }
@@ -137,7 +132,8 @@ void add_bench(CLI::App& app) {
               "Examples:\n  vkjr2 bench sim --sizes 256 --json-file bench_sim.json\n"
               "  vkjr2 bench kernels --only warp,add\n"
               "The latest figures and the machines they came from: bench/RESULTS.md.");
-  cmd->callback([cmd, name] { run_benchmark(benchmark_named(*name), cmd->remaining()); });
+  // The name is checked above (IsMember).
+  cmd->callback([cmd, name] { run_benchmark(*find_benchmark(*name), cmd->remaining()); });
 }
 
 }  // namespace vkjr2::cli

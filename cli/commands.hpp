@@ -18,7 +18,7 @@ void add_demo(CLI::App& app);          // demo.cpp: the turbulence-vs-recognitio
 
 // bench.cpp: `vkjr2 bench NAME ARGS...` runs NAME's program with ARGS (argv,
 // argc of them) in place of this process; returns 1 after printing the error
-// when it cannot.
+// when it cannot. NAME must be one is_benchmark() accepts.
 bool is_benchmark(std::string_view name);
 int run_benchmark(std::string_view name, int argc, char** argv);
 

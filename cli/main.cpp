@@ -57,12 +57,4 @@ int run(int argc, char** argv) {
 
 }  // namespace
 
-int main(int argc, char** argv) {
-  vkjr2::cli::start_program();
-  try {
-    return run(argc, argv);
-  } catch (...) {  // building the parser itself failed (out of memory)
-    vkjr2::cli::print_error("unexpected failure while starting");
-    return 1;
-  }
-}
+int main(int argc, char** argv) { return vkjr2::cli::program_main(argc, argv, run); }

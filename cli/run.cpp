@@ -62,6 +62,13 @@ int parse_and_run(CLI::App& app, int argc, char** argv) {
   return 0;
 }
 
+// The signal clean-up, and OpenCV's own log silenced: first thing in main.
+void start_program() {
+  install_signal_cleanup();
+  // OpenCV's own log lines ("[ WARN:0@...]") only with --verbose.
+  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
+}
+
 }  // namespace
 
 void print_error(std::string text) {
@@ -71,12 +78,6 @@ void print_error(std::string text) {
   std::cout.flush();
   std::fflush(stdout);
   std::fprintf(stderr, "vkjr2: error: %s\n", text.c_str());
-}
-
-void start_program() {
-  install_signal_cleanup();
-  // OpenCV's own log lines ("[ WARN:0@...]") only with --verbose.
-  cv::utils::logging::setLogLevel(cv::utils::logging::LOG_LEVEL_SILENT);
 }
 
 void add_logging_options(CLI::App& app) {
@@ -93,6 +94,16 @@ void add_logging_options(CLI::App& app) {
          "Messages on stderr: error, warn (default), info (device, files written), debug")
       ->envname("VKJR2_LOG_LEVEL")
       ->check(CLI::IsMember(log_level_names()));
+}
+
+int program_main(int argc, char** argv, int (*run)(int, char**)) noexcept {
+  start_program();
+  try {
+    return run(argc, argv);
+  } catch (...) {  // building the parser itself failed (out of memory)
+    print_error("unexpected failure while starting");
+    return 1;
+  }
 }
 
 int run_program(CLI::App& app, int argc, char** argv) {

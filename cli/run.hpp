@@ -15,8 +15,10 @@
 
 namespace vkjr2::cli {
 
-// Starts the signal clean-up and silences OpenCV's own log: first thing in main.
-void start_program();
+// main() of a vkjr2 program: start_program(), then run(argc, argv) (which
+// builds the parser and calls run_program); a failure while building the
+// parser itself is one error line and exit code 1.
+int program_main(int argc, char** argv, int (*run)(int, char**)) noexcept;
 
 // Parses and runs `app` (its subcommands' callbacks do the work) and returns
 // the exit code; cleans up after a failure.

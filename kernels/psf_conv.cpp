@@ -126,6 +126,7 @@ PsfConvFft::PsfConvFft(const Device& device, const Tensor& psi, std::int64_t bat
                        std::int64_t channels, std::int64_t height, std::int64_t width,
                        std::int64_t max_temporary_bytes)
     : device_(device), n_(batch), c_(channels), h_(height), w_(width) {
+  if (max_temporary_bytes == 0) max_temporary_bytes = device.traits().psf_fft_max_temporary_bytes;
   const char* op = "PsfConvFft";
   require_f32_rank(psi, 3, op, "psi");
   k_ = psi.shape()[0];

@@ -45,10 +45,10 @@ void psf_conv_backward(Stream& stream, const Tensor& x, const Tensor& beta, cons
 class PsfConvFft {
  public:
   // psi [K, S, S]; images [batch, channels, height, width].
-  // max_temporary_bytes bounds each temporary (k is chunked to fit).
+  // max_temporary_bytes bounds each temporary (k is chunked to fit); 0: the
+  // device's DeviceTraits::psf_fft_max_temporary_bytes.
   PsfConvFft(const Device& device, const Tensor& psi, std::int64_t batch, std::int64_t channels,
-             std::int64_t height, std::int64_t width,
-             std::int64_t max_temporary_bytes = 96ll << 20);
+             std::int64_t height, std::int64_t width, std::int64_t max_temporary_bytes = 0);
   ~PsfConvFft();
   PsfConvFft(const PsfConvFft&) = delete;
   PsfConvFft& operator=(const PsfConvFft&) = delete;

@@ -311,13 +311,6 @@ void Stream::dispatch_raw(const KernelDef& kernel, std::initializer_list<Arg> ar
                               " bindings, more than the runtime's " + std::to_string(kMaxBindings),
                           "split the kernel or raise kMaxBindings in runtime/stream.cpp");
   }
-  if (spec.size() > detail::kMaxSpecConstants) {
-    throw InvalidArgument(
-        op(),
-        std::to_string(spec.size()) + " specialization constants, more than " +
-            std::to_string(detail::kMaxSpecConstants),
-        "pass fewer or raise kMaxSpecConstants in runtime/internal/device_core.hpp");
-  }
   if (push_bytes != kernel.push_bytes) {
     throw InvalidArgument(op(), "push constants are " + std::to_string(push_bytes) +
                                     " bytes, the kernel declares " +

@@ -118,8 +118,7 @@ Simulator::Simulator(const Device& device, const Params& params,
     }
     const DeviceTraits& traits = device_.traits();
     if (kernels::psf_conv_path(traits, b, g.count, k, s, h, w) == kernels::PsfConvPath::fft) {
-      g.fft = std::make_unique<kernels::PsfConvFft>(device_, basis, b, g.count, h, w,
-                                                    traits.psf_fft_max_temporary_bytes);
+      g.fft = std::make_unique<kernels::PsfConvFft>(device_, basis, b, g.count, h, w);
     }
   }
 }
