@@ -14,6 +14,7 @@ void add_sim_train(CLI::App& app);     // sim_train.cpp
 void add_wave(CLI::App& app);          // wave.cpp
 void add_bench(CLI::App& app);         // bench.cpp: runs bench/'s programs
 void add_sim_validate(CLI::App& app);  // sim_validate.cpp
+void add_dataset(CLI::App& app);      // dataset.cpp: dataset make, dataset merge
 void add_demo(CLI::App& app);          // demo.cpp: the turbulence-vs-recognition study
 
 // bench.cpp: `vkjr2 bench NAME ARGS...` runs NAME's program with ARGS (argv,

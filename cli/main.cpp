@@ -35,6 +35,7 @@ int run(int argc, char** argv) {
       "--force); 3 no Vulkan device;\n130/143 interrupted by SIGINT/SIGTERM (temporary outputs "
       "removed). Errors are one line starting \"vkjr2: error:\".\n"
       "Images up to 4096x4096 pixels.");
+  vkjr2::cli::add_dataset(app);
   vkjr2::cli::add_demo(app);
   vkjr2::cli::add_devices(app);
   vkjr2::cli::add_faces(app);
