@@ -18,9 +18,11 @@
 #include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <regex>
+#include <set>
 #include <string>
 #include <vector>
 
@@ -39,8 +41,8 @@ namespace fs = std::filesystem;
 
 struct MakeArgs {
   std::string out, source, strengths = "weak,moderate,strong", shard, device;
-  int frames = 30, clip_size = 160, face_px = 80, probes = 1, input_size = 416;
-  double enrolled = 2.0 / 3;
+  int frames = 30, clip_size = 160, face_px = 80, probes = 1, input_size = 416, max_identities = 0;
+  double enrolled = 0.5;
   std::uint64_t seed = 1;
   bool force = false, resume = false, quiet = false, json_out = false;
 };
@@ -74,13 +76,15 @@ class FaceSource {
     auto it = faces_.find(path.string());
     if (it == faces_.end()) {
       const Image& img = image(path);
-      it = faces_.emplace(path.string(),
-                          analyzer_.analyze(stream_, nets::image_to_device(stream_.device(), img),
-                                            options_))
+      it = faces_
+               .emplace(path.string(),
+                        analyzer_.analyze(stream_, nets::image_to_device(stream_.device(), img),
+                                          options_))
                .first;
     }
     return it->second;
   }
+
  private:
   static constexpr std::size_t kCachedImages = 32;
   const jr2::FaceAnalyzer& analyzer_;
@@ -105,13 +109,12 @@ std::vector<jr2::SourceImage> folder_source(const fs::path& root) {
   std::vector<jr2::SourceImage> images;
   for (const fs::path& dir : ids) {
     for (const fs::path& img : list_images(dir)) {
-      images.push_back({dir.filename().string(),
-                        (dir.filename() / img.filename()).generic_string(), 0});
+      images.push_back(
+          {dir.filename().string(), (dir.filename() / img.filename()).generic_string(), 0});
     }
   }
   if (images.empty()) {
-    throw UsageError("--source",
-                     root.string() + " holds no ROOT/<identity>/<image> files",
+    throw UsageError("--source", root.string() + " holds no ROOT/<identity>/<image> files",
                      "lay the faces out one folder per identity (as LFW, VGGFace2 and WebFace "
                      "ship), or leave --source out for the bundled photos");
   }
@@ -181,7 +184,8 @@ Image face_clip(const Image& img, const nets::FaceBox& box, int clip_size, int f
   cv::resize(src, scaled,
              cv::Size(std::max(1, int(std::lround(w * s))), std::max(1, int(std::lround(h * s)))),
              0, 0, s < 1 ? cv::INTER_AREA : cv::INTER_CUBIC);
-  const int x0 = int(std::lround(cx - clip_size / 2.0)), y0 = int(std::lround(cy - clip_size / 2.0));
+  const int x0 = int(std::lround(cx - clip_size / 2.0)),
+            y0 = int(std::lround(cy - clip_size / 2.0));
   const int left = std::max(0, -x0), top = std::max(0, -y0);
   const int right = std::max(0, x0 + clip_size - scaled.cols);
   const int bottom = std::max(0, y0 + clip_size - scaled.rows);
@@ -217,9 +221,10 @@ void run_make(const MakeArgs& a) {
   o.enrolled = a.enrolled;
   o.seed = a.seed;
   if (a.face_px > a.clip_size) {
-    throw UsageError("--face-px", std::to_string(a.face_px) + " px faces in " +
-                                      std::to_string(a.clip_size) + " px clips",
-                     "make the face smaller than the clip (about half of it keeps context)");
+    throw UsageError(
+        "--face-px",
+        std::to_string(a.face_px) + " px faces in " + std::to_string(a.clip_size) + " px clips",
+        "make the face smaller than the clip (about half of it keeps context)");
   }
   int shard = 0, shards = 1;
   if (!a.shard.empty()) {
@@ -245,6 +250,15 @@ void run_make(const MakeArgs& a) {
   Stream stream(device);
   FaceSource faces(analyzer, stream, a.input_size);
   std::vector<jr2::SourceImage> images = bundled ? bundled_source(faces) : folder_source(root);
+  if (a.max_identities > 0) {  // the first N identities by name
+    std::set<std::string> ids;
+    for (const auto& im : images) ids.insert(im.identity);
+    if (ids.size() > std::size_t(a.max_identities)) {
+      ids.erase(std::next(ids.begin(), a.max_identities), ids.end());
+      std::erase_if(images,
+                    [&](const jr2::SourceImage& im) { return ids.count(im.identity) == 0; });
+    }
+  }
   jr2::Manifest plan;
   try {
     plan = jr2::plan_benchmark(images, o);
@@ -258,8 +272,7 @@ void run_make(const MakeArgs& a) {
   create_output_folder(out, "--out");
   const auto blur = sim::load_shipped_blur_models(device);
   const double aperture_m = sim::preset("moderate").optics.aperture_m;
-  const std::size_t steps =
-      part.gallery.size() + part.probes.size() * std::size_t(o.frames);
+  const std::size_t steps = part.gallery.size() + part.probes.size() * std::size_t(o.frames);
   Progress bar("dataset make" + (shards > 1 ? " " + a.shard : std::string()), steps, a.quiet);
   std::size_t done = 0, made = 0, kept = 0, undetected = 0;
   const auto exists = [&](const fs::path& p) {
@@ -328,18 +341,20 @@ void run_make(const MakeArgs& a) {
   if (a.json_out) {
     std::printf(
         "{\"manifest\": \"%s\", \"identities\": %zu, \"gallery\": %zu, \"probes\": %zu, "
-        "\"mated\": %zu, \"made\": %zu, \"kept\": %zu, \"split_kind\": \"%s\", \"seconds\": %.1f}\n",
+        "\"mated\": %zu, \"made\": %zu, \"kept\": %zu, \"split_kind\": \"%s\", \"seconds\": "
+        "%.1f}\n",
         (out / manifest_name).string().c_str(), plan.identities, part.gallery.size(),
         part.probes.size(), mated, made, kept,
         plan.split_kind == jr2::SplitKind::identity ? "identity" : "realization", seconds);
     return;
   }
-  std::printf("%s: %zu identities, %zu gallery clips, %zu probe videos (%zu mated, %zu non-mated) "
-              "of %d frames, %s-disjoint val/test splits; %zu made, %zu kept, %.0f s\n",
-              (out / manifest_name).string().c_str(), plan.identities, part.gallery.size(),
-              part.probes.size(), mated, part.probes.size() - mated, o.frames,
-              plan.split_kind == jr2::SplitKind::identity ? "identity" : "realization", made, kept,
-              seconds);
+  std::printf(
+      "%s: %zu identities, %zu gallery clips, %zu probe videos (%zu mated, %zu non-mated) "
+      "of %d frames, %s-disjoint val/test splits; %zu made, %zu kept, %.0f s\n",
+      (out / manifest_name).string().c_str(), plan.identities, part.gallery.size(),
+      part.probes.size(), mated, part.probes.size() - mated, o.frames,
+      plan.split_kind == jr2::SplitKind::identity ? "identity" : "realization", made, kept,
+      seconds);
   if (shards > 1) {
     std::printf("when all %d shards are done: vkjr2 dataset merge %s\n", shards,
                 out.string().c_str());
@@ -351,9 +366,8 @@ void run_merge(const std::string& dir_text, bool force) {
   check_input_folder(dir, "DIR");
   const std::regex name(R"(manifest\.shard-(\d+)-of-(\d+)\.json)");
   std::vector<jr2::Manifest> shards;
-  for (const fs::path& p : list_files(dir, [&](const fs::path& f) {
-         return std::regex_match(f.filename().string(), name);
-       })) {
+  for (const fs::path& p : list_files(
+           dir, [&](const fs::path& f) { return std::regex_match(f.filename().string(), name); })) {
     shards.push_back(jr2::read_manifest(p));
   }
   if (shards.empty()) {
@@ -378,20 +392,32 @@ void run_merge(const std::string& dir_text, bool force) {
 }  // namespace
 
 void add_dataset(CLI::App& app) {
-  CLI::App* cmd = app.add_subcommand("dataset", "Make the JR² benchmark (gallery + turbulent probe videos)");
+  CLI::App* cmd =
+      app.add_subcommand("dataset", "Make the JR² benchmark (gallery + turbulent probe videos)");
   cmd->require_subcommand(1);
   auto a = std::make_shared<MakeArgs>();
-  CLI::App* make = cmd->add_subcommand("make", "Make a benchmark: clean gallery clips and turbulent probe videos, with manifest.json");
+  CLI::App* make = cmd->add_subcommand(
+      "make",
+      "Make a benchmark: clean gallery clips and turbulent probe videos, with manifest.json");
   make->footer(
-      "Input: face-api's sample photos (every face found is its own identity), or --source ROOT laid out\n"
-      "ROOT/<identity>/<image> (LFW, VGGFace2, WebFace). A share of the identities (--enrolled) is enrolled:\n"
-      "their first image's clean clip is the gallery; their other images (or the same one, when they have\n"
-      "one) become mated probe videos; the other identities become non-mated probes (distractors). Each\n"
-      "probe is a clip of the face with context (the face --face-px wide in a --clip-size square) through\n"
-      "--frames of turbulence at each strength, D/r0 drawn log-uniformly: weak 1–2, moderate 2–4, strong 4–8.\n"
-      "Splits val and test: identity-disjoint when the source has enough identities (20 per split), else\n"
-      "the same identities with other turbulence realizations. The same seed gives the same files.\n"
-      "Writes DIR/gallery/*.png, DIR/probes/SPLIT/STRENGTH/*.avi, DIR/manifest.json and manifest.csv.\n"
+      "Input: face-api's sample photos (every face found is its own identity), or --source ROOT "
+      "laid out\n"
+      "ROOT/<identity>/<image> (LFW, VGGFace2, WebFace). A share of the identities (--enrolled) is "
+      "enrolled:\n"
+      "their first image's clean clip is the gallery; their other images (or the same one, when "
+      "they have\n"
+      "one) become mated probe videos; the other identities become non-mated probes (distractors). "
+      "Each\n"
+      "probe is a clip of the face with context (the face --face-px wide in a --clip-size square) "
+      "through\n"
+      "--frames of turbulence at each strength, D/r0 drawn log-uniformly: weak 1–2, moderate 2–4, "
+      "strong 4–8.\n"
+      "Splits val and test: identity-disjoint when the source has enough identities (20 per "
+      "split), else\n"
+      "the same identities with other turbulence realizations. The same seed gives the same "
+      "files.\n"
+      "Writes DIR/gallery/*.png, DIR/probes/SPLIT/STRENGTH/*.avi, DIR/manifest.json and "
+      "manifest.csv.\n"
       "On a cluster: --shard I/N in each of N jobs (docs/eval.md), then vkjr2 dataset merge DIR.\n"
       "Examples:\n"
       "  vkjr2 dataset make --out bench/jr2\n"
@@ -415,15 +441,21 @@ void add_dataset(CLI::App& app) {
       ->default_val(1)
       ->check(integer_range(1, 1000));
   make->add_option("--enrolled", a->enrolled, "Share of the identities enrolled in the gallery")
-      ->default_val(2.0 / 3)
+      ->capture_default_str()
       ->check(finite_range(0.01, 1));
+  make->add_option("--max-identities", a->max_identities,
+                   "Use only the first N identities by name (0: all; a quick, small benchmark)")
+      ->default_val(0)
+      ->check(integer_range(0, 100000000));
   make->add_option("--input-size", a->input_size, "Detector input size for the source images")
       ->default_val(416)
       ->check(integer_range(32, 1024));
   add_seed_option(make, a->seed, "Seed of the identities' roles and the turbulence");
   make->add_option("--shard", a->shard, "Make part I of N (0 ≤ I < N): manifest.shard-I-of-N.json");
-  make->add_option("--device", a->device, "Vulkan device index or name substring (else VKJR2_DEVICE)");
-  make->add_flag("--resume", a->resume, "Keep the files already made (they are written whole or not at all)");
+  make->add_option("--device", a->device,
+                   "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  make->add_flag("--resume", a->resume,
+                 "Keep the files already made (they are written whole or not at all)");
   make->add_flag("--force", a->force, "Replace existing files");
   make->add_flag("--quiet", a->quiet, "No progress bar");
   make->add_flag("--json", a->json_out, "Print a JSON summary");
@@ -437,9 +469,11 @@ void add_dataset(CLI::App& app) {
 
   auto dir = std::make_shared<std::string>();
   auto force = std::make_shared<bool>(false);
-  CLI::App* merge = cmd->add_subcommand("merge", "Merge the manifests of a sharded dataset make into manifest.json");
-  merge->footer("Checks that all N shards of one run are there and every file they list exists.\n"
-                "Example:\n  vkjr2 dataset merge bench/jr2");
+  CLI::App* merge = cmd->add_subcommand(
+      "merge", "Merge the manifests of a sharded dataset make into manifest.json");
+  merge->footer(
+      "Checks that all N shards of one run are there and every file they list exists.\n"
+      "Example:\n  vkjr2 dataset merge bench/jr2");
   merge->add_option("DIR", *dir, "The --out folder of the shards")->required();
   merge->add_flag("--force", *force, "Replace an existing manifest.json");
   merge->callback([dir, force] { run_merge(*dir, *force); });

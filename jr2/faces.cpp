@@ -26,41 +26,69 @@ std::vector<float> FaceAnalyzer::describe_chip(Stream& stream, const Tensor& chi
   return d.value().download();
 }
 
-std::vector<Face> FaceAnalyzer::analyze(Stream& stream, const Tensor& image,
-                                        const FaceOptions& options) const {
+std::vector<nets::FaceDetection> FaceAnalyzer::detect(Stream& stream, const Tensor& image,
+                                                      const FaceOptions& options) const {
   const Shape& s = image.shape();
   if (s.rank() != 4 || s[0] != 1 || s[1] != 3) {
-    throw InvalidArgument("FaceAnalyzer::analyze", "image has shape " + s.str(),
+    throw InvalidArgument("FaceAnalyzer::detect", "image has shape " + s.str(),
                           "pass one RGB image [1, 3, H, W] in 0..255");
   }
-  const int w = int(s[3]), h = int(s[2]);
+  std::vector<nets::FaceDetection> all =
+      detector_->detect(stream, image, options.input_size, options.score_threshold);
+  if (options.extra_input_sizes.empty()) return all;
+  for (int size : options.extra_input_sizes) {
+    const auto more = detector_->detect(stream, image, size, options.score_threshold);
+    all.insert(all.end(), more.begin(), more.end());
+  }
+  std::vector<nets::FaceBox> boxes;
+  std::vector<double> scores;
+  for (const auto& d : all) {
+    boxes.push_back(d.box);
+    scores.push_back(d.score);
+  }
+  std::vector<nets::FaceDetection> merged;
+  for (std::size_t i : nets::non_max_suppression(boxes, scores, nets::kTinyFaceIouThreshold)) {
+    merged.push_back(all[i]);
+  }
+  return merged;
+}
+
+bool FaceAnalyzer::describe(Stream& stream, const Tensor& image, const nets::FaceDetection& det,
+                            const FaceOptions& options, Face& f) const {
+  const int w = int(image.shape()[3]), h = int(image.shape()[2]);
+  f.score = det.score;
+  f.box = det.box;
+  f.cut_by_border = det.box.x < 0 || det.box.y < 0 || det.box.x + det.box.width > w ||
+                    det.box.y + det.box.height > h;
+  f.landmarks = landmarks_->landmarks_in_image(stream, image, det.box);
+  f.chip_box = face_api_chip_box(std::span<const double>(f.landmarks), w, h);
+  f.descriptor.clear();
+  if (!options.descriptors) return true;
+  nets::Tape t(stream, false);
+  nets::Var input;
+  if (options.align == AlignMode::face_api) {
+    if (f.chip_box.width <= 0 || f.chip_box.height <= 0) return false;
+    input = nets::to_recognition_input(t, nets::extract_face(t, nets::Var(image), f.chip_box));
+  } else {
+    const std::vector<float> lm(f.landmarks.begin(), f.landmarks.end());
+    input = align_face(t, nets::Var(image), lm, int(nets::kRecognitionInputSize));
+  }
+  const nets::Var d = recognition_->forward(t, input);
+  stream.run();
+  f.descriptor = d.value().download();
+  return true;
+}
+
+std::vector<Face> FaceAnalyzer::analyze(Stream& stream, const Tensor& image,
+                                        const FaceOptions& options) const {
+  const int w = int(image.shape().rank() == 4 ? image.shape()[3] : 0);
+  const int h = int(image.shape().rank() == 4 ? image.shape()[2] : 0);
   std::vector<Face> faces;
-  for (const nets::FaceDetection& det :
-       detector_->detect(stream, image, options.input_size, options.score_threshold)) {
+  for (const nets::FaceDetection& det : detect(stream, image, options)) {
     const nets::FaceBox clipped = nets::clip_at_image_borders(det.box, w, h);
     if (clipped.width <= 0 || clipped.height <= 0) continue;  // entirely outside the frame
     Face f;
-    f.score = det.score;
-    f.box = det.box;
-    f.cut_by_border = det.box.x < 0 || det.box.y < 0 || det.box.x + det.box.width > w ||
-                      det.box.y + det.box.height > h;
-    f.landmarks = landmarks_->landmarks_in_image(stream, image, det.box);
-    f.chip_box = face_api_chip_box(std::span<const double>(f.landmarks), w, h);
-    if (options.descriptors) {
-      nets::Tape t(stream, false);
-      nets::Var input;
-      if (options.align == AlignMode::face_api) {
-        if (f.chip_box.width <= 0 || f.chip_box.height <= 0) continue;
-        input = nets::to_recognition_input(t, nets::extract_face(t, nets::Var(image), f.chip_box));
-      } else {
-        const std::vector<float> lm(f.landmarks.begin(), f.landmarks.end());
-        input = align_face(t, nets::Var(image), lm, int(nets::kRecognitionInputSize));
-      }
-      const nets::Var d = recognition_->forward(t, input);
-      stream.run();
-      f.descriptor = d.value().download();
-    }
-    faces.push_back(std::move(f));
+    if (describe(stream, image, det, options, f)) faces.push_back(std::move(f));
   }
   return faces;
 }

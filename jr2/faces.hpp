@@ -20,7 +20,11 @@ enum class AlignMode : std::uint8_t {
 };
 
 struct FaceOptions {
-  int input_size = 416;          // detector input, a multiple of 32
+  int input_size = 416;  // detector input, a multiple of 32
+  // More detector input sizes (multiples of 32): the detector runs at each
+  // and the detections of all are merged by face-api's NMS (IoU 0.4), so a
+  // face too large or too small for one input size is found at another.
+  std::vector<int> extra_input_sizes;
   float score_threshold = 0.5f;  // detector score in (0, 1)
   bool descriptors = true;       // run the recognition net
   AlignMode align = AlignMode::face_api;
@@ -43,9 +47,20 @@ class FaceAnalyzer {
   FaceAnalyzer(const FaceAnalyzer&) = delete;
   FaceAnalyzer& operator=(const FaceAnalyzer&) = delete;
 
-  // Every face in image [1, 3, H, W] (RGB 0..255), highest score first.
-  // Faces whose crop falls outside the image are dropped.
+  // Every face in image [1, 3, H, W] (RGB 0..255), highest score first:
+  // detect(), then describe() of each. Faces whose crop falls outside the
+  // image are dropped.
   std::vector<Face> analyze(Stream& stream, const Tensor& image, const FaceOptions& options) const;
+  // The detections at options.input_size and options.extra_input_sizes,
+  // merged by NMS, highest score first. Throws InvalidArgument for an input
+  // size that is not a positive multiple of 32.
+  std::vector<nets::FaceDetection> detect(Stream& stream, const Tensor& image,
+                                          const FaceOptions& options) const;
+  // Landmarks, crop or alignment and (options.descriptors) the descriptor of
+  // the face in `box` of image [1, 3, H, W]. Returns false, leaving `face`
+  // partly filled, when face_api alignment's crop falls outside the image.
+  bool describe(Stream& stream, const Tensor& image, const nets::FaceDetection& detection,
+                const FaceOptions& options, Face& face) const;
   // The descriptor of an already cropped face [1, 3, h, w] (any size; padded
   // to a square and resized to 150 as face-api does).
   std::vector<float> describe_chip(Stream& stream, const Tensor& chip) const;

@@ -29,7 +29,7 @@ TEST(Benchmark, RealizationSplitsForAFewIdentities) {
   const Manifest m = plan_benchmark(source(22, 1), o);
   EXPECT_EQ(m.split_kind, SplitKind::realization);
   EXPECT_EQ(m.identities, 22u);
-  EXPECT_EQ(m.gallery.size(), 15u);  // round(22 · 2/3)
+  EXPECT_EQ(m.gallery.size(), 11u);  // 22 · 0.5
   // Every identity in both splits at every strength.
   EXPECT_EQ(m.probes.size(), 22u * 3 * 2);
   std::set<std::uint64_t> seeds;

@@ -1,0 +1,169 @@
+#include <vkjr2/jr2/protocol.hpp>
+#include <vkjr2/runtime/error.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <string>
+
+namespace vkjr2::jr2 {
+namespace {
+
+bool near_centre(const nets::FaceBox& b, double w, double h, double radius) {
+  const double dx = b.x + b.width / 2 - w / 2, dy = b.y + b.height / 2 - h / 2;
+  const double r = radius * std::min(w, h);
+  return dx * dx + dy * dy <= r * r;
+}
+
+}  // namespace
+
+const char* align_mode_name(AlignMode mode) noexcept {
+  return mode == AlignMode::similarity ? "similarity" : "face_api";
+}
+
+void check_protocol_options(const ProtocolOptions& o) {
+  const auto fail = [](const std::string& what, const std::string& problem,
+                       const std::string& fix) { throw InvalidArgument(what, problem, fix); };
+  if (o.input_sizes.empty()) fail("input sizes", "none given", "name at least one, e.g. 416");
+  for (int s : o.input_sizes) {
+    if (s < 32 || s % 32 != 0 || s > 2048) {
+      fail("input sizes", std::to_string(s) + " is not a multiple of 32 in 32..2048",
+           "use sizes such as 160, 320, 416, 608");
+    }
+  }
+  if (!(o.score_threshold > 0 && o.score_threshold < 1) ||
+      !(o.track_threshold > 0 && o.track_threshold <= o.score_threshold)) {
+    fail("thresholds",
+         "score threshold " + std::to_string(o.score_threshold) + ", track threshold " +
+             std::to_string(o.track_threshold),
+         "use 0 < track threshold ≤ score threshold < 1");
+  }
+  if (!(o.track_iou > 0 && o.track_iou <= 1) || !(o.anchor_radius > 0 && o.anchor_radius <= 1) ||
+      !(o.gallery_face_share > 0 && o.gallery_face_share <= 1)) {
+    fail("track", "track IoU, anchor radius and gallery face share must be in (0, 1]",
+         "keep the defaults (0.3, 0.25, 0.5) unless the clips are cut otherwise");
+  }
+  if (o.aligns.empty()) fail("align", "no alignment", "name face_api and/or similarity");
+}
+
+ProbePipeline::ProbePipeline(const FaceAnalyzer& analyzer, ProtocolOptions options)
+    : analyzer_(analyzer), options_(std::move(options)) {
+  check_protocol_options(options_);
+}
+
+std::vector<ProbePipeline::Detection> ProbePipeline::detect_all(Stream& stream, const Tensor& image,
+                                                                float threshold) const {
+  std::vector<Detection> out;
+  FaceOptions fo;
+  fo.score_threshold = threshold;
+  for (std::size_t s = 0; s < options_.input_sizes.size(); ++s) {
+    fo.input_size = options_.input_sizes[s];
+    for (const auto& d : analyzer_.detect(stream, image, fo)) out.push_back({d, int(s)});
+  }
+  return out;
+}
+
+ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
+                                const std::function<Tensor(int)>& frame, std::uint64_t seed) const {
+  const ProtocolOptions& o = options_;
+  ProbeOutcome out;
+  const std::vector<int> picked = sample_frames(frame_count, o.sampler, seed);
+  std::vector<Tensor> images;
+  std::vector<std::vector<Detection>> dets;
+  // Pass 1: every detection down to the track's bar, and the anchor.
+  const Detection* anchor = nullptr;
+  double w = 0, h = 0;
+  for (int f : picked) {
+    images.push_back(frame(f));
+    const Shape& s = images.back().shape();
+    if (s.rank() != 4 || s[0] != 1 || s[1] != 3) {
+      throw InvalidArgument("ProbePipeline::run",
+                            "frame " + std::to_string(f) + " has shape " + s.str(),
+                            "pass [1, 3, H, W] RGB frames");
+    }
+    w = double(s[3]);
+    h = double(s[2]);
+    dets.push_back(detect_all(stream, images.back(), o.track_threshold));
+  }
+  for (const auto& frame_dets : dets) {
+    for (const Detection& d : frame_dets) {
+      if (d.det.score >= o.score_threshold && near_centre(d.det.box, w, h, o.anchor_radius) &&
+          (anchor == nullptr || d.det.score > anchor->det.score)) {
+        anchor = &d;
+      }
+    }
+  }
+  // Pass 2: per frame, the three rules; the track's detection is described.
+  out.descriptors.resize(o.aligns.size());
+  out.templates.resize(o.aligns.size());
+  for (std::size_t i = 0; i < picked.size(); ++i) {
+    FrameOutcome fo;
+    fo.frame = picked[i];
+    const Detection* best = nullptr;
+    for (const Detection& d : dets[i]) {
+      const bool strong_centre =
+          d.det.score >= o.score_threshold && near_centre(d.det.box, w, h, o.anchor_radius);
+      if (strong_centre) {
+        fo.multi_scale = true;
+        if (d.scale == 0) fo.single_scale = true;
+      }
+      const bool on_track =
+          strong_centre ||
+          (anchor != nullptr && nets::box_iou(d.det.box, anchor->det.box) >= o.track_iou);
+      if (on_track && (best == nullptr || d.det.score > best->det.score)) best = &d;
+    }
+    if (best != nullptr) {
+      fo.tracked = true;
+      fo.box = best->det.box;
+      fo.score = best->det.score;
+      for (std::size_t a = 0; a < o.aligns.size(); ++a) {
+        FaceOptions opts;
+        opts.align = o.aligns[a];
+        Face face;
+        if (analyzer_.describe(stream, images[i], best->det, opts, face)) {
+          out.descriptors[a].push_back(std::move(face.descriptor));
+        }
+      }
+    }
+    out.frames.push_back(fo);
+  }
+  for (std::size_t a = 0; a < o.aligns.size(); ++a) {
+    if (!out.descriptors[a].empty()) out.templates[a] = make_template(out.descriptors[a], o.fusion);
+  }
+  return out;
+}
+
+std::vector<std::vector<float>> ProbePipeline::describe_gallery(Stream& stream,
+                                                                const Tensor& image) const {
+  const ProtocolOptions& o = options_;
+  const Shape& s = image.shape();
+  const double w = double(s[3]), h = double(s[2]);
+  nets::FaceDetection chosen;
+  bool found = false;
+  for (const Detection& d : detect_all(stream, image, o.score_threshold)) {
+    if (near_centre(d.det.box, w, h, o.anchor_radius) && (!found || d.det.score > chosen.score)) {
+      chosen = d.det;
+      found = true;
+    }
+  }
+  if (!found) {
+    const double side = o.gallery_face_share * std::min(w, h);
+    chosen.box = {(w - side) / 2, (h - side) / 2, side, side};
+    chosen.score = 0;
+  }
+  std::vector<std::vector<float>> out;
+  for (AlignMode a : o.aligns) {
+    FaceOptions opts;
+    opts.align = a;
+    Face face;
+    if (!analyzer_.describe(stream, image, chosen, opts, face)) {
+      throw Error("describe_gallery",
+                  "the gallery face's crop falls outside its " + std::to_string(int(w)) + "×" +
+                      std::to_string(int(h)) + " image",
+                  "enrol clips with the face inside them (vkjr2 dataset make cuts them so)");
+    }
+    out.push_back(make_template(std::vector<std::vector<float>>{face.descriptor}, o.fusion));
+  }
+  return out;
+}
+
+}  // namespace vkjr2::jr2

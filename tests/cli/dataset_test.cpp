@@ -1,0 +1,190 @@
+// `vkjr2 dataset make / merge` and `vkjr2 eval` as a user runs them: a small
+// benchmark from the bundled photos, sharded generation that equals the
+// one-process run byte for byte, the evaluation's files, and clear errors
+// for a bad manifest.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+
+#include "support/cli_checks.hpp"
+#include "support/cli_files.hpp"
+#include "support/run_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using vkjr2::test::parse_json;
+using vkjr2::test::run_cli;
+using vkjr2::test::TempDir;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), {}};
+}
+
+// 6 identities, weak turbulence, 3-frame probes: 3 enrolled, 12 probes.
+const std::string kSmall = " --max-identities 6 --strengths weak --frames 3 --quiet";
+
+TEST(CliDataset, ShardsEqualTheOneProcessRun) {
+  TempDir tmp("dataset");
+  const fs::path one = tmp.path / "one", sharded = tmp.path / "sharded";
+  auto r = run_cli("dataset make --out " + one.string() + kSmall + " --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  EXPECT_EQ(j["identities"], 6) << r.output;
+  EXPECT_EQ(j["gallery"], 3) << r.output;
+  EXPECT_EQ(j["probes"], 12) << r.output;
+  EXPECT_EQ(j["split_kind"], "realization");
+  // Three shards, made in any order (two under the sanitizers, which are slower).
+  const int n = vkjr2::test::kSanitized ? 2 : 3;
+  for (int i = n - 1; i >= 0; --i) {
+    r = run_cli("dataset make --out " + sharded.string() + kSmall + " --shard " +
+                std::to_string(i) + "/" + std::to_string(n));
+    ASSERT_EQ(r.code, 0) << r.output;
+  }
+  EXPECT_FALSE(fs::exists(sharded / "manifest.json"));
+  r = run_cli("dataset merge " + sharded.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string manifest = slurp(one / "manifest.json");
+  EXPECT_EQ(slurp(sharded / "manifest.json"), manifest);
+  EXPECT_EQ(slurp(sharded / "manifest.csv"), slurp(one / "manifest.csv"));
+  // Every file, byte for byte.
+  const json m = json::parse(manifest);
+  std::size_t files = 0;
+  for (const char* list : {"gallery", "probes"}) {
+    for (const json& item : m[list]) {
+      const std::string f = item["file"];
+      EXPECT_EQ(slurp(sharded / f), slurp(one / f)) << f;
+      ++files;
+    }
+  }
+  EXPECT_EQ(files, 15u);
+  // A probe is a video of the frames asked for, at the clip size.
+  cv::VideoCapture cap((one / m["probes"][0]["file"].get<std::string>()).string());
+  ASSERT_TRUE(cap.isOpened());
+  cv::Mat frame;
+  int frames = 0;
+  while (cap.read(frame)) {
+    EXPECT_EQ(frame.cols, 160);
+    EXPECT_EQ(frame.rows, 160);
+    ++frames;
+  }
+  EXPECT_EQ(frames, 3);
+  // Merging with a shard missing names it.
+  fs::remove(sharded / ("manifest.shard-1-of-" + std::to_string(n) + ".json"));
+  r = run_cli("dataset merge " + sharded.string() + " --force");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("shard 1 of " + std::to_string(n) + " is missing"), std::string::npos)
+      << r.output;
+  // An existing benchmark is not replaced without --force; --resume keeps its files.
+  r = run_cli("dataset make --out " + one.string() + kSmall);
+  EXPECT_EQ(r.code, 2) << r.output;
+  r = run_cli("dataset make --out " + one.string() + kSmall + " --resume --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["kept"], 15) << r.output;
+  EXPECT_EQ(slurp(one / "manifest.json"), manifest);
+}
+
+TEST(CliDataset, BadOptionsAreUsageErrors) {
+  TempDir tmp("dataset_bad");
+  for (const std::string& bad :
+       {std::string("--strengths medium"), std::string("--shard 3/3"), std::string("--face-px 200"),
+        std::string("--source ") + (tmp.path / "nowhere").string(),
+        std::string("--input-size 100")}) {
+    const auto r = run_cli("dataset make --out " + (tmp.path / "x").string() + " " + bad);
+    EXPECT_EQ(r.code, 2) << bad << "\n" << r.output;
+    EXPECT_NE(r.output.find("vkjr2: error:"), std::string::npos) << r.output;
+  }
+  EXPECT_FALSE(fs::exists(tmp.path / "x"));
+}
+
+TEST(CliEval, ReportsEveryMetricWithIntervalsAndPlots) {
+  TempDir tmp("eval");
+  const fs::path bench = tmp.path / "bench", out = tmp.path / "out";
+  auto r = run_cli("dataset make --out " + bench.string() + kSmall);
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run_cli("eval " + (bench / "manifest.json").string() + " --out " + out.string() +
+              " --resamples 50 --quiet --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  ASSERT_EQ(j["rows"].size(), 2u) << r.output;  // face_api and similarity × weak
+  for (const json& row : j["rows"]) {
+    EXPECT_EQ(row["strength"], "weak");
+    EXPECT_EQ(row["probes"], 6);  // the test split: every identity once
+    EXPECT_EQ(row["mated"], 3);
+    EXPECT_EQ(row["tar_at_far"].size(), 4u);
+    EXPECT_EQ(row["rank"].size(), 3u);
+    EXPECT_EQ(row["fnir_at_fpir"].size(), 2u);
+    // 3 mated × 2 + 3 non-mated × 3 impostor pairs = 15: FAR 0.1 is measurable, 0.01 is not.
+    EXPECT_EQ(row["tar_at_far"][0]["impostors"], 15);
+    EXPECT_TRUE(row["tar_at_far"][0]["reported"]);
+    EXPECT_FALSE(row["tar_at_far"][1]["reported"]);
+    const json& rank1 = row["rank"][0];
+    ASSERT_TRUE(rank1["value"].is_number()) << row.dump();
+    EXPECT_LE(rank1["ci95"][0].get<double>(), rank1["value"].get<double>());
+    EXPECT_GE(rank1["ci95"][1].get<double>(), rank1["value"].get<double>());
+    EXPECT_EQ(row["detection"]["frames"], 6 * 3);  // segments:4x2 of 3 frames: all 3
+    EXPECT_GE(row["detection"]["tracked"], row["detection"]["multi_scale"]);
+    EXPECT_GE(row["detection"]["multi_scale"], row["detection"]["single_scale"]);
+  }
+  // scores.csv: every probe against every enrolled identity, per alignment.
+  const std::string csv = slurp(out / "scores.csv");
+  EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 2 * 6 * 3);
+  for (const char* png : {"roc.png", "cmc.png", "fnir_fpir.png"}) {
+    const cv::Mat img = cv::imread((out / png).string());
+    EXPECT_EQ(img.cols, 1000) << png;
+    EXPECT_EQ(img.rows, 700) << png;
+  }
+  EXPECT_NE(slurp(out / "report.md").find("| degraded | face_api | weak |"), std::string::npos);
+  // The outputs are not replaced without --force.
+  r = run_cli("eval " + (bench / "manifest.json").string() + " --out " + out.string());
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
+TEST(CliEval, ABadManifestIsOneClearErrorBeforeAnyWork) {
+  TempDir tmp("eval_bad");
+  const fs::path bench = tmp.path / "bench";
+  auto r = run_cli("dataset make --out " + bench.string() + kSmall);
+  ASSERT_EQ(r.code, 0) << r.output;
+  const std::string manifest = slurp(bench / "manifest.json");
+  const json m = json::parse(manifest);
+  const auto eval = [&](const std::string& text) {
+    std::ofstream(bench / "bad.json") << text;
+    return run_cli("eval " + (bench / "bad.json").string() + " --out " + (tmp.path / "o").string());
+  };
+  // A file it names is missing.
+  fs::rename(bench / m["probes"][3]["file"].get<std::string>(), tmp.path / "moved.avi");
+  r = eval(manifest);
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find(m["probes"][3]["file"].get<std::string>() +
+                          ", listed in the manifest, is missing"),
+            std::string::npos)
+      << r.output;
+  fs::rename(tmp.path / "moved.avi", bench / m["probes"][3]["file"].get<std::string>());
+  // A bad split.
+  json bad = m;
+  bad["probes"][1]["split"] = "train";
+  r = eval(bad.dump());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("probes[1]: split 'train'"), std::string::npos) << r.output;
+  // Not JSON; not a manifest.
+  EXPECT_EQ(eval("{\"probes\": [").code, 2);
+  EXPECT_EQ(eval("[1, 2]").code, 2);
+  EXPECT_FALSE(fs::exists(tmp.path / "o")) << "an output folder was made before the error";
+  // Unknown method, split or sampler.
+  for (const char* opt : {"--method restored", "--split train", "--frames segments:0x2",
+                          "--input-sizes 100", "--align dlib"}) {
+    r = run_cli("eval " + (bench / "manifest.json").string() + " --out " +
+                (tmp.path / "o").string() + " " + opt);
+    EXPECT_EQ(r.code, 2) << opt << "\n" << r.output;
+  }
+}
+
+}  // namespace
