@@ -33,7 +33,7 @@ TEST(CliDocs, EveryCommandsHelpIsInDocsCliMd) {
   const std::string docs = read_docs();
   ASSERT_FALSE(docs.empty()) << "docs/cli.md is missing";
   for (const char* c :
-       {"", "demo", "devices", "detect", "embed", "verify", "identify", "simulate", "wave",
+       {"", "dataset", "dataset make", "dataset merge", "eval", "demo", "devices", "detect", "embed", "verify", "identify", "simulate", "wave",
         "sim-train", "sim-validate", "bench", "bench sim", "bench kernels"}) {
     const std::string h = help(c);
     EXPECT_NE(h.find("Usage"), std::string::npos) << c;
