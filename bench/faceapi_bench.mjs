@@ -9,7 +9,14 @@
 //
 //   node bench/faceapi_bench.mjs [--json out.json] [--runs 10] [--warmup 2]
 //        [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR]
-//        [--serve]
+//        [--frames DIR] [--serve]
+//
+// --frames DIR (bench/pipeline_bench): DIR/index.json lists probes, each a
+// list of sampled frames as raw 8-bit RGB files ({"input_size": S, "probes":
+// [{"name": N, "frames": [{"file", "width", "height"}]}]}); benchmark N runs
+// face-api's detectAllFaces(frame, TinyFaceDetectorOptions(S, 0.5))
+// .withFaceLandmarks().withFaceDescriptors() on each of its frames (the
+// frames are tensors before the timing starts, as a decoded video's are).
 //
 // --serve: for bench/nets_bench, which interleaves these runs with its own so
 // that both see the same machine load. After the warm-ups it prints one JSON
@@ -27,7 +34,7 @@ import path from 'node:path';
 import { decodeJpeg, loadFaceApi } from '../tests/parity/face_api_reference.mjs';
 
 const USAGE = `usage: node bench/faceapi_bench.mjs [--json out.json] [--runs 10] [--warmup 2]
-       [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR] [--serve]`;
+       [--backend wasm|cpu] [--node-modules DIR] [--models DIR] [--images DIR] [--frames DIR] [--serve]`;
 
 const BATCH = 8;  // as kBatch in bench/nets_bench.cpp
 
@@ -53,6 +60,7 @@ function parseArgs(argv) {
     else if (a === '--models') args.models = val();
     else if (a === '--images') args.images = val();
     else if (a === '--serve') args.serve = true;
+    else if (a === '--frames') args.frames = val();
     else if (a === '-h' || a === '--help') args.help = true;
     else throw new Error(`unknown argument ${a}\n${USAGE}`);
   }
@@ -158,6 +166,31 @@ async function main() {
     },
   ];
 
+  // Probe videos' sampled frames (--frames): face-api's whole pipeline per frame.
+  const frameTensors = [];
+  if (args.frames) {
+    const index = JSON.parse(fs.readFileSync(path.join(args.frames, 'index.json'), 'utf8'));
+    const probeOptions = new faceapi.TinyFaceDetectorOptions({ inputSize: index.input_size, scoreThreshold: 0.5 });
+    for (const probe of index.probes) {
+      const frames = probe.frames.map((f) => {
+        const bytes = fs.readFileSync(path.join(args.frames, f.file));
+        if (bytes.length !== f.width * f.height * 3) throw new Error(`${f.file}: expected ${f.width}x${f.height}x3 bytes`);
+        return tf.tensor3d(new Float32Array(bytes), [f.height, f.width, 3], 'float32');
+      });
+      frameTensors.push(...frames);
+      benches.push({
+        name: probe.name,
+        faces: frames.length,
+        what: `face-api detect (${index.input_size}) + landmarks + descriptors on ${frames.length} frames`,
+        fn: async () => {
+          for (const frame of frames) {
+            await faceapi.detectAllFaces(frame, probeOptions).withFaceLandmarks().withFaceDescriptors();
+          }
+        },
+      });
+    }
+  }
+
   const peer = `face-api ${info.versions.face_api} / TF.js ${info.versions.tfjs} ${info.backend}`
     + (info.backend === 'wasm' ? ` (SIMD ${info.wasm_simd ? 'on' : 'off'}, ${info.wasm_threads} thread)` : ' (pure JS)');
   const about = {
@@ -170,7 +203,7 @@ async function main() {
   };
   if (args.serve) {
     await serve(benches, args.warmup, about);
-    tf.dispose([image, lmCrop, chip, chip150, lm112]);
+    tf.dispose([image, lmCrop, chip, chip150, lm112, ...frameTensors]);
     return;
   }
   console.log(`${peer}, median of ${args.runs} runs after ${args.warmup} warm-ups`);
@@ -193,7 +226,7 @@ async function main() {
     console.log(`${b.name.padEnd(30)} ${t.median.toFixed(2).padStart(10)} ${t.min.toFixed(2).padStart(9)} `
       + `${t.max.toFixed(2).padStart(9)} ${((1000 * facesPerRun) / t.median).toFixed(1).padStart(8)}  ${b.what}`);
   }
-  tf.dispose([image, lmCrop, chip, chip150, lm112]);
+  tf.dispose([image, lmCrop, chip, chip150, lm112, ...frameTensors]);
 
   if (args.json) {
     writeJsonAtomic(args.json, { ...about, results });

@@ -16,7 +16,8 @@ namespace vkjr2::bench {
 
 namespace fs = std::filesystem;
 
-TfjsServer::TfjsServer(bool enabled, const std::string& script) {
+TfjsServer::TfjsServer(bool enabled, const std::string& script,
+                       const std::vector<std::string>& extra_args) {
   if (!enabled) {
     reason_ = "skipped (--no-tfjs)";
     return;
@@ -42,7 +43,14 @@ TfjsServer::TfjsServer(bool enabled, const std::string& script) {
     return;
   }
   // No warm-ups at start: time_interleaved warms every peer up, this one too.
-  std::fprintf(stderr, "nets_bench: node %s --serve --warmup 0\n", script.c_str());
+  std::vector<std::string> args = {"node", script, "--serve", "--warmup", "0"};
+  args.insert(args.end(), extra_args.begin(), extra_args.end());
+  std::string command;
+  for (const std::string& a : args) command += (command.empty() ? "" : " ") + a;
+  std::fprintf(stderr, "bench: %s\n", command.c_str());
+  std::vector<char*> argv;
+  for (std::string& a : args) argv.push_back(a.data());
+  argv.push_back(nullptr);
   std::fflush(stdout);  // the child must not inherit unwritten output
   std::fflush(stderr);
   pid_ = ::fork();
@@ -52,8 +60,7 @@ TfjsServer::TfjsServer(bool enabled, const std::string& script) {
     ::dup2(from_child[1], 2);  // its errors come back as lines too
     ::close(to_child[1]);
     ::close(from_child[0]);
-    ::execlp("node", "node", script.c_str(), "--serve", "--warmup", "0",
-             static_cast<char*>(nullptr));
+    ::execvp("node", argv.data());
     ::_exit(127);
   }
   ::close(to_child[0]);

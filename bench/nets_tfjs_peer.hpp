@@ -6,6 +6,7 @@
 
 #include <cstdio>
 #include <string>
+#include <vector>
 
 namespace vkjr2::bench {
 
@@ -16,8 +17,10 @@ namespace vkjr2::bench {
 // packages are missing, or the process dies.
 class TfjsServer {
  public:
-  // script: faceapi_bench.mjs; enabled false: skipped (--no-tfjs).
-  TfjsServer(bool enabled, const std::string& script);
+  // script: faceapi_bench.mjs; enabled false: skipped (--no-tfjs);
+  // extra_args: more arguments for the script (e.g. --frames DIR).
+  TfjsServer(bool enabled, const std::string& script,
+             const std::vector<std::string>& extra_args = {});
   ~TfjsServer() { stop(); }
   TfjsServer(const TfjsServer&) = delete;
   TfjsServer& operator=(const TfjsServer&) = delete;

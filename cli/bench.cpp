@@ -36,12 +36,14 @@ struct Benchmark {
   const char* what;
 };
 
-constexpr std::array<Benchmark, 4> kBenchmarks{{
+constexpr std::array<Benchmark, 5> kBenchmarks{{
     {"sim", "sim_bench",
      "fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)"},
     {"kernels", "kernels_bench", "each kernel against OpenCV, FFTW or plain C++"},
     {"runtime", "runtime_bench", "dispatch cost, copy bandwidth and FMA throughput of the device"},
     {"nets", "nets_bench", "the face networks against face-api on TF.js WASM and OpenCV DNN"},
+    {"pipeline", "pipeline_bench",
+     "probe videos/s through the JR² recognition pipeline against face-api on TF.js WASM"},
 }};
 
 const Benchmark* find_benchmark(std::string_view name) {

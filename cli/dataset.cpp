@@ -28,6 +28,7 @@
 
 #include "checks.hpp"
 #include "cleanup.hpp"
+#include "clips.hpp"
 #include "commands.hpp"
 #include "log.hpp"
 #include "media.hpp"
@@ -173,33 +174,6 @@ nets::FaceBox face_box(FaceSource& faces, const fs::path& path, const jr2::Sourc
   return {(w - side) / 2, (h - side) / 2, side, side};
 }
 
-// The clip: the image scaled so that the face box is face_px wide, a
-// clip_size² window centred on the face (edges replicated past the image).
-Image face_clip(const Image& img, const nets::FaceBox& box, int clip_size, int face_px) {
-  const int h = int(img.shape[0]), w = int(img.shape[1]);
-  cv::Mat src(h, w, CV_32FC3, const_cast<float*>(img.values.data()));  // NOLINT
-  const double s = double(face_px) / std::max(box.width, 1.0);
-  const double cx = (box.x + box.width / 2) * s, cy = (box.y + box.height / 2) * s;
-  cv::Mat scaled;
-  cv::resize(src, scaled,
-             cv::Size(std::max(1, int(std::lround(w * s))), std::max(1, int(std::lround(h * s)))),
-             0, 0, s < 1 ? cv::INTER_AREA : cv::INTER_CUBIC);
-  const int x0 = int(std::lround(cx - clip_size / 2.0)),
-            y0 = int(std::lround(cy - clip_size / 2.0));
-  const int left = std::max(0, -x0), top = std::max(0, -y0);
-  const int right = std::max(0, x0 + clip_size - scaled.cols);
-  const int bottom = std::max(0, y0 + clip_size - scaled.rows);
-  cv::Mat padded;
-  cv::copyMakeBorder(scaled, padded, top, bottom, left, right, cv::BORDER_REPLICATE);
-  cv::Mat clip = padded(cv::Rect(x0 + left, y0 + top, clip_size, clip_size)).clone();
-  cv::min(cv::max(clip, 0.0), 255.0, clip);
-  Image out;
-  out.shape = {clip_size, clip_size, 3};
-  out.values.assign(reinterpret_cast<const float*>(clip.datastart),
-                    reinterpret_cast<const float*>(clip.dataend));
-  return out;
-}
-
 void write_text_file(const fs::path& path, const std::string& text) {
   vkjr2::write_file_atomic(path, std::as_bytes(std::span(text)), "dataset");
 }
@@ -271,7 +245,6 @@ void run_make(const MakeArgs& a) {
 
   create_output_folder(out, "--out");
   const auto blur = sim::load_shipped_blur_models(device);
-  const double aperture_m = sim::preset("moderate").optics.aperture_m;
   const std::size_t steps = part.gallery.size() + part.probes.size() * std::size_t(o.frames);
   Progress bar("dataset make" + (shards > 1 ? " " + a.shard : std::string()), steps, a.quiet);
   std::size_t done = 0, made = 0, kept = 0, undetected = 0;
@@ -297,9 +270,7 @@ void run_make(const MakeArgs& a) {
   const int c = o.clip_size;
   const Shape shape{1, 3, c, c};
   const Tensor x = Tensor::empty(device, shape), y = Tensor::empty(device, shape);
-  sim::SimOptions so;
-  so.field.tilt_rho = 0.9;  // the defaults of vkjr2 simulate
-  so.field.high_order_rho = 0.6;
+  const sim::SimOptions so = jr2::probe_sim_options();
   for (const jr2::ProbeItem& p : part.probes) {
     const fs::path file = out / p.file;
     if (a.resume && exists(file)) {
@@ -312,9 +283,7 @@ void run_make(const MakeArgs& a) {
     const fs::path src = root / p.source.path;
     const nets::FaceBox box = face_box(faces, src, p.source, bundled, undetected);
     const Image clip = face_clip(faces.image(src), box, c, o.face_px);
-    PathArgs pa;
-    pa.r0 = aperture_m / p.d_over_r0;
-    sim::Simulator simulator(device, params_for_image(pa, c, c), blur, so);
+    sim::Simulator simulator(device, jr2::probe_sim_params(p.d_over_r0, c), blur, so);
     simulator.reset(p.seed);
     x.upload(to_planes(clip, 3));
     VideoWriter writer(file, kProbeFps, c, c, a.force);

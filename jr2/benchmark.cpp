@@ -366,6 +366,23 @@ Manifest merge_shards(const std::vector<Manifest>& shards) {
   return m;
 }
 
+sim::Params probe_sim_params(double d_over_r0, int clip_size) {
+  sim::Params p = sim::preset("moderate");
+  p.path.strength = sim::Strength::r0;
+  p.path.r0_m = p.optics.aperture_m / d_over_r0;
+  p.path.r0_wavelength_m = p.optics.wavelengths_m.front();
+  p.image = {clip_size, clip_size, 3, 1};
+  (void)sim::derive(p);  // validates
+  return p;
+}
+
+sim::SimOptions probe_sim_options() {
+  sim::SimOptions o;
+  o.field.tilt_rho = 0.9;
+  o.field.high_order_rho = 0.6;
+  return o;
+}
+
 std::string shard_manifest_name(int index, int count) {
   return "manifest.shard-" + std::to_string(index) + "-of-" + std::to_string(count) + ".json";
 }

@@ -10,6 +10,9 @@
 // and the merged shard manifests equal its manifest.
 #pragma once
 
+#include <vkjr2/sim/params.hpp>
+#include <vkjr2/sim/simulator.hpp>
+
 #include <cstdint>
 #include <filesystem>
 #include <string>
@@ -115,5 +118,13 @@ void check_manifest_files(const Manifest& m, const std::filesystem::path& dir);
 
 // The file names a shard writes: manifest.shard-I-of-N.json.
 std::string shard_manifest_name(int index, int count);
+
+// How a probe is simulated: the "moderate" preset's path and optics (L =
+// 1 km, D = 0.2 m, 525 nm on every channel) with r0 = D / d_over_r0, on a
+// clip_size² RGB frame; the tilt correlated 0.9 and the blur 0.6 from frame
+// to frame (vkjr2 simulate's defaults). Throws InvalidArgument for a D/r0
+// the simulator refuses.
+sim::Params probe_sim_params(double d_over_r0, int clip_size);
+sim::SimOptions probe_sim_options();
 
 }  // namespace vkjr2::jr2

@@ -53,8 +53,8 @@ std::vector<nets::FaceDetection> FaceAnalyzer::detect(Stream& stream, const Tens
   return merged;
 }
 
-bool FaceAnalyzer::describe(Stream& stream, const Tensor& image, const nets::FaceDetection& det,
-                            const FaceOptions& options, Face& f) const {
+void FaceAnalyzer::locate(Stream& stream, const Tensor& image, const nets::FaceDetection& det,
+                          Face& f) const {
   const int w = int(image.shape()[3]), h = int(image.shape()[2]);
   f.score = det.score;
   f.box = det.box;
@@ -63,20 +63,73 @@ bool FaceAnalyzer::describe(Stream& stream, const Tensor& image, const nets::Fac
   f.landmarks = landmarks_->landmarks_in_image(stream, image, det.box);
   f.chip_box = face_api_chip_box(std::span<const double>(f.landmarks), w, h);
   f.descriptor.clear();
-  if (!options.descriptors) return true;
-  nets::Tape t(stream, false);
-  nets::Var input;
-  if (options.align == AlignMode::face_api) {
-    if (f.chip_box.width <= 0 || f.chip_box.height <= 0) return false;
-    input = nets::to_recognition_input(t, nets::extract_face(t, nets::Var(image), f.chip_box));
-  } else {
-    const std::vector<float> lm(f.landmarks.begin(), f.landmarks.end());
-    input = align_face(t, nets::Var(image), lm, int(nets::kRecognitionInputSize));
+}
+
+namespace {
+
+// The recognition net's [1, 3, 150, 150] input for a located face (undefined:
+// face-api's crop falls outside the image).
+nets::Var recognition_input(nets::Tape& t, const Tensor& image, AlignMode align, const Face& f) {
+  if (align == AlignMode::face_api) {
+    if (f.chip_box.width <= 0 || f.chip_box.height <= 0) return {};
+    return nets::to_recognition_input(t, nets::extract_face(t, nets::Var(image), f.chip_box));
   }
-  const nets::Var d = recognition_->forward(t, input);
+  const std::vector<float> lm(f.landmarks.begin(), f.landmarks.end());
+  return align_face(t, nets::Var(image), lm, int(nets::kRecognitionInputSize));
+}
+
+}  // namespace
+
+bool FaceAnalyzer::embed(Stream& stream, const Tensor& image, AlignMode align, Face& f) const {
+  return embed_batch(stream, std::span<const Tensor>(&image, 1), align, std::span<Face>(&f, 1))
+      .front();
+}
+
+std::vector<bool> FaceAnalyzer::embed_batch(Stream& stream, std::span<const Tensor> images,
+                                            AlignMode align, std::span<Face> faces) const {
+  if (images.size() != faces.size()) {
+    throw InvalidArgument(
+        "FaceAnalyzer::embed_batch",
+        std::to_string(images.size()) + " images for " + std::to_string(faces.size()) + " faces",
+        "pass each face's image");
+  }
+  std::vector<bool> ok(faces.size(), false);
+  nets::Tape t(stream, false);
+  std::vector<nets::Var> inputs;
+  std::vector<std::size_t> which;
+  for (std::size_t i = 0; i < faces.size(); ++i) {
+    nets::Var in = recognition_input(t, images[i], align, faces[i]);
+    if (!in.defined()) continue;
+    inputs.push_back(std::move(in));
+    which.push_back(i);
+  }
+  if (inputs.empty()) return ok;
+  const std::int64_t s = nets::kRecognitionInputSize, per_face = 3 * s * s;
+  const auto n = std::int64_t(inputs.size());
+  Tensor batch =
+      n == 1 ? inputs.front().value() : Tensor::empty(stream.device(), Shape{n, 3, s, s});
+  if (n > 1) {
+    for (std::int64_t i = 0; i < n; ++i) {
+      stream.copy(inputs[std::size_t(i)].value(), batch.view(Shape{1, 3, s, s}, i * per_face));
+    }
+  }
+  const nets::Var d = recognition_->forward(t, nets::Var(batch));
   stream.run();
-  f.descriptor = d.value().download();
-  return true;
+  const std::vector<float> all = d.value().download();
+  const std::size_t dim = all.size() / std::size_t(n);
+  for (std::size_t k = 0; k < which.size(); ++k) {
+    Face& f = faces[which[k]];
+    f.descriptor.assign(all.begin() + std::ptrdiff_t(k * dim),
+                        all.begin() + std::ptrdiff_t((k + 1) * dim));
+    ok[which[k]] = true;
+  }
+  return ok;
+}
+
+bool FaceAnalyzer::describe(Stream& stream, const Tensor& image, const nets::FaceDetection& det,
+                            const FaceOptions& options, Face& f) const {
+  locate(stream, image, det, f);
+  return !options.descriptors || embed(stream, image, options.align, f);
 }
 
 std::vector<Face> FaceAnalyzer::analyze(Stream& stream, const Tensor& image,

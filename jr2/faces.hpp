@@ -57,10 +57,21 @@ class FaceAnalyzer {
   std::vector<nets::FaceDetection> detect(Stream& stream, const Tensor& image,
                                           const FaceOptions& options) const;
   // Landmarks, crop or alignment and (options.descriptors) the descriptor of
-  // the face in `box` of image [1, 3, H, W]. Returns false, leaving `face`
-  // partly filled, when face_api alignment's crop falls outside the image.
+  // the detected face in image [1, 3, H, W]: locate(), then embed(). Returns
+  // false, leaving `face` partly filled, when face_api alignment's crop falls
+  // outside the image.
   bool describe(Stream& stream, const Tensor& image, const nets::FaceDetection& detection,
                 const FaceOptions& options, Face& face) const;
+  // The face's score, box, 68 landmarks and face-api's crop box (no descriptor).
+  void locate(Stream& stream, const Tensor& image, const nets::FaceDetection& detection,
+              Face& face) const;
+  // face.descriptor from a located face, aligned by `align` (false: the
+  // face_api crop falls outside the image).
+  bool embed(Stream& stream, const Tensor& image, AlignMode align, Face& face) const;
+  // embed() of faces[i] in images[i] for every i, as one batch through the
+  // recognition net (one submit). Returns which faces got a descriptor.
+  std::vector<bool> embed_batch(Stream& stream, std::span<const Tensor> images, AlignMode align,
+                                std::span<Face> faces) const;
   // The descriptor of an already cropped face [1, 3, h, w] (any size; padded
   // to a square and resized to 150 as face-api does).
   std::vector<float> describe_chip(Stream& stream, const Tensor& chip) const;

@@ -2,6 +2,7 @@
 #include <vkjr2/runtime/error.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <string>
 
@@ -72,8 +73,15 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
   // Pass 1: every detection down to the track's bar, and the anchor.
   const Detection* anchor = nullptr;
   double w = 0, h = 0;
+  using Clock = std::chrono::steady_clock;
+  const auto since = [](Clock::time_point t0) {
+    return std::chrono::duration<double>(Clock::now() - t0).count();
+  };
   for (int f : picked) {
+    auto t0 = Clock::now();
     images.push_back(frame(f));
+    out.seconds.frames += since(t0);
+    t0 = Clock::now();
     const Shape& s = images.back().shape();
     if (s.rank() != 4 || s[0] != 1 || s[1] != 3) {
       throw InvalidArgument("ProbePipeline::run",
@@ -83,6 +91,7 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
     w = double(s[3]);
     h = double(s[2]);
     dets.push_back(detect_all(stream, images.back(), o.track_threshold));
+    out.seconds.detect += since(t0);
   }
   for (const auto& frame_dets : dets) {
     for (const Detection& d : frame_dets) {
@@ -92,9 +101,12 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
       }
     }
   }
-  // Pass 2: per frame, the three rules; the track's detection is described.
+  // Pass 2: per frame, the three rules; the track's detections are located
+  // (landmarks), then embedded as one batch per alignment.
   out.descriptors.resize(o.aligns.size());
   out.templates.resize(o.aligns.size());
+  std::vector<Face> tracked_faces;
+  std::vector<Tensor> tracked_images;
   for (std::size_t i = 0; i < picked.size(); ++i) {
     FrameOutcome fo;
     fo.frame = picked[i];
@@ -115,20 +127,28 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
       fo.tracked = true;
       fo.box = best->det.box;
       fo.score = best->det.score;
-      for (std::size_t a = 0; a < o.aligns.size(); ++a) {
-        FaceOptions opts;
-        opts.align = o.aligns[a];
-        Face face;
-        if (analyzer_.describe(stream, images[i], best->det, opts, face)) {
-          out.descriptors[a].push_back(std::move(face.descriptor));
-        }
-      }
+      const auto t0 = Clock::now();
+      tracked_faces.emplace_back();
+      analyzer_.locate(stream, images[i], best->det, tracked_faces.back());
+      tracked_images.push_back(images[i]);
+      out.seconds.landmarks += since(t0);
     }
     out.frames.push_back(fo);
   }
+  const auto t_embed = Clock::now();
+  for (std::size_t a = 0; a < o.aligns.size() && !tracked_faces.empty(); ++a) {
+    const std::vector<bool> ok =
+        analyzer_.embed_batch(stream, tracked_images, o.aligns[a], tracked_faces);
+    for (std::size_t k = 0; k < ok.size(); ++k) {
+      if (ok[k]) out.descriptors[a].push_back(tracked_faces[k].descriptor);
+    }
+  }
+  out.seconds.align_embed = since(t_embed);
+  const auto t0 = Clock::now();
   for (std::size_t a = 0; a < o.aligns.size(); ++a) {
     if (!out.descriptors[a].empty()) out.templates[a] = make_template(out.descriptors[a], o.fusion);
   }
+  out.seconds.fusion = since(t0);
   return out;
 }
 
@@ -151,11 +171,10 @@ std::vector<std::vector<float>> ProbePipeline::describe_gallery(Stream& stream,
     chosen.score = 0;
   }
   std::vector<std::vector<float>> out;
+  Face face;
+  analyzer_.locate(stream, image, chosen, face);
   for (AlignMode a : o.aligns) {
-    FaceOptions opts;
-    opts.align = a;
-    Face face;
-    if (!analyzer_.describe(stream, image, chosen, opts, face)) {
+    if (!analyzer_.embed(stream, image, a, face)) {
       throw Error("describe_gallery",
                   "the gallery face's crop falls outside its " + std::to_string(int(w)) + "×" +
                       std::to_string(int(h)) + " image",

@@ -52,8 +52,20 @@ struct FrameOutcome {
   float score = 0;
 };
 
+// Host wall time of each stage of one probe (the stages wait for the
+// device, so these are the stages' whole cost).
+struct StageSeconds {
+  double frames = 0;       // fetching the sampled frames (decode, upload: the caller's frame())
+  double detect = 0;       // the detector at every input size, NMS, the track
+  double landmarks = 0;    // 68 landmarks of the tracked faces
+  double align_embed = 0;  // crop or alignment, and the descriptor
+  double fusion = 0;       // the templates
+  double total() const { return frames + detect + landmarks + align_embed + fusion; }
+};
+
 struct ProbeOutcome {
   std::vector<FrameOutcome> frames;  // the sampled frames
+  StageSeconds seconds;
   // Per alignment (ProtocolOptions::aligns order): the descriptors of the
   // tracked frames, and the template (empty: no face acquired).
   std::vector<std::vector<std::vector<float>>> descriptors;

@@ -81,7 +81,34 @@ TEST(ProbePipeline, TracksAStillFaceAndMatchesItsGalleryDescriptor) {
     ASSERT_EQ(po.templates[a].size(), 128u);
     EXPECT_EQ(po.descriptors[a].size(), 3u);
     // The same pixels: the template is the gallery's descriptor.
-    EXPECT_GT(cosine_similarity(po.templates[a], gallery[a]), 0.9999) << align_mode_name(o.aligns[a]);
+    EXPECT_GT(cosine_similarity(po.templates[a], gallery[a]), 0.9999)
+        << align_mode_name(o.aligns[a]);
+  }
+}
+
+TEST(ProbePipeline, BatchedDescriptorsEqualOneAtATime) {
+  const auto index = test::parity_index();
+  const HostTensor photo =
+      vkjr2::read_npy(test::parity_dir() / index["images"][0]["pixels"].get<std::string>());
+  Stream s(test::device());
+  const Tensor image = nets::image_to_device(test::device(), photo);
+  FaceOptions fo;
+  fo.descriptors = false;
+  std::vector<Face> faces = analyzer().analyze(s, image, fo);
+  ASSERT_GE(faces.size(), 2u);
+  const std::vector<Tensor> images(faces.size(), image);
+  for (AlignMode align : {AlignMode::face_api, AlignMode::similarity}) {
+    std::vector<Face> batch = faces;
+    const std::vector<bool> ok = analyzer().embed_batch(s, images, align, batch);
+    for (std::size_t i = 0; i < faces.size(); ++i) {
+      Face one = faces[i];
+      ASSERT_EQ(analyzer().embed(s, image, align, one), bool(ok[i]));
+      ASSERT_EQ(one.descriptor.size(), batch[i].descriptor.size());
+      for (std::size_t k = 0; k < one.descriptor.size(); ++k) {
+        EXPECT_NEAR(batch[i].descriptor[k], one.descriptor[k], 1e-5)
+            << align_mode_name(align) << " face " << i;
+      }
+    }
   }
 }
 
@@ -95,7 +122,8 @@ TEST(ProbePipeline, NoFaceNoTemplate) {
   const Tensor img = nets::image_to_device(test::device(), noise);
   Stream s(test::device());
   const ProbePipeline pipeline(analyzer(), ProtocolOptions{});
-  const ProbeOutcome po = pipeline.run(s, 4, [&](int) { return img; }, 3);
+  const ProbeOutcome po = pipeline.run(
+      s, 4, [&](int) { return img; }, 3);
   ASSERT_EQ(po.frames.size(), 4u);  // segments:4x2 of 4 frames: one each
   for (const FrameOutcome& f : po.frames) EXPECT_FALSE(f.tracked);
   for (const auto& t : po.templates) EXPECT_TRUE(t.empty());

@@ -1,0 +1,330 @@
+// vkjr2 bench pipeline: probe videos per second through the JR² pipeline
+// (frame sampler → detect → landmarks → align → embed → template), with the
+// time per stage, against face-api on TF.js WASM doing detect + landmarks +
+// descriptors on the same sampled frames, their runs interleaved with ours.
+#include <vkjr2/jr2/benchmark.hpp>
+#include <vkjr2/jr2/faces.hpp>
+#include <vkjr2/jr2/protocol.hpp>
+#include <vkjr2/jr2/sampler.hpp>
+#include <vkjr2/nets/face_common.hpp>
+#include <vkjr2/runtime/device.hpp>
+#include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/stream.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
+#include <vkjr2/sim/params.hpp>
+#include <vkjr2/sim/simulator.hpp>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "cli/checks.hpp"
+#include "cli/clips.hpp"
+#include "cli/log.hpp"
+#include "cli/run.hpp"
+#include "harness.hpp"
+#include "nets_tfjs_peer.hpp"
+
+namespace vkjr2::cli {
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+
+struct PipelineArgs {
+  int probes = 6, frames = 30, runs = 3, clip = 160, face_px = 80;
+  double d_over_r0 = 3.0;
+  bool tfjs = true, json_out = false;
+  std::string device, json_path,
+      faceapi_script = std::string(VKJR2_SOURCE_DIR) + "/bench/faceapi_bench.mjs";
+};
+
+// A probe video: its frames as a decoded 8-bit video gives them (H×W×3, 0..255).
+struct Probe {
+  std::string name;
+  std::vector<HostTensor> frames;
+  std::vector<int> sampled;
+};
+
+HostTensor read_rgb(const fs::path& path) {
+  const cv::Mat bgr = cv::imread(path.string());
+  if (bgr.empty()) {
+    throw Error("bench pipeline", "cannot read " + path.string(),
+                "run scripts/setup (it fetches face-api's sample photos)");
+  }
+  cv::Mat rgb, f;
+  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
+  rgb.convertTo(f, CV_32FC3);
+  HostTensor t;
+  t.shape = {f.rows, f.cols, 3};
+  t.values.assign(reinterpret_cast<const float*>(f.datastart),
+                  reinterpret_cast<const float*>(f.dataend));
+  return t;
+}
+
+// The probes: face i of the sample photos, cut as vkjr2 dataset make cuts
+// it, through `frames` frames of turbulence at D/r0 (seed i), quantized to 8
+// bits as a video file holds them.
+std::vector<Probe> make_probes(const Device& device, const jr2::FaceAnalyzer& analyzer,
+                               const PipelineArgs& a, const jr2::FrameSampler& sampler) {
+  const fs::path demo = nets::face_api_model_dir().parent_path() / "demo";
+  Stream stream(device);
+  std::vector<std::pair<HostTensor, nets::FaceBox>> faces;
+  jr2::FaceOptions fo;
+  fo.descriptors = false;
+  for (int p = 1; p <= 6 && int(faces.size()) < a.probes; ++p) {
+    const HostTensor photo = read_rgb(demo / ("sample" + std::to_string(p) + ".jpg"));
+    for (const jr2::Face& f : analyzer.analyze(stream, nets::image_to_device(device, photo), fo)) {
+      faces.emplace_back(photo, f.box);
+    }
+  }
+  if (faces.empty())
+    throw Error("bench pipeline", "no face found in the sample photos", "run scripts/setup");
+  const auto blur = sim::load_shipped_blur_models(device);
+  const sim::SimOptions so = jr2::probe_sim_options();
+  const int c = a.clip;
+  const Shape shape{1, 3, c, c};
+  const Tensor x = Tensor::empty(device, shape), y = Tensor::empty(device, shape);
+  std::vector<Probe> probes;
+  for (int i = 0; i < a.probes; ++i) {
+    const auto& [photo, box] = faces[std::size_t(i) % faces.size()];
+    const HostTensor clip = face_clip(photo, box, c, a.face_px);
+    std::vector<float> planes(std::size_t(3 * c * c));
+    for (std::size_t k = 0; k < std::size_t(c * c); ++k) {
+      for (std::size_t ch = 0; ch < 3; ++ch)
+        planes[ch * std::size_t(c * c) + k] = clip.values[k * 3 + ch] / 255.f;
+    }
+    x.upload(planes);
+    sim::Simulator simulator(device, jr2::probe_sim_params(a.d_over_r0, c), blur, so);
+    simulator.reset(std::uint64_t(i) + 1);
+    Probe probe;
+    probe.name = "probe_" + std::to_string(i);
+    for (int t = 0; t < a.frames; ++t) {
+      simulator.frame(stream, x, y);
+      stream.run();
+      const std::vector<float> v = y.download();
+      HostTensor frame;
+      frame.shape = {c, c, 3};
+      frame.values.resize(std::size_t(3 * c * c));
+      for (std::size_t k = 0; k < std::size_t(c * c); ++k) {
+        for (std::size_t ch = 0; ch < 3; ++ch) {
+          frame.values[k * 3 + ch] =
+              std::round(std::clamp(v[ch * std::size_t(c * c) + k] * 255.f, 0.f, 255.f));
+        }
+      }
+      probe.frames.push_back(std::move(frame));
+    }
+    probe.sampled = jr2::sample_frames(a.frames, sampler, std::uint64_t(i) + 1);
+    probes.push_back(std::move(probe));
+  }
+  return probes;
+}
+
+// The sampled frames as raw RGB for faceapi_bench.mjs --frames.
+void write_frames(const fs::path& dir, const std::vector<Probe>& probes, int input_size) {
+  fs::create_directories(dir);
+  json index{{"input_size", input_size}, {"probes", json::array()}};
+  for (const Probe& p : probes) {
+    json frames = json::array();
+    for (int f : p.sampled) {
+      const HostTensor& img = p.frames[std::size_t(f)];
+      const std::string file = p.name + "_" + std::to_string(f) + ".rgb";
+      std::vector<unsigned char> bytes(img.values.size());
+      for (std::size_t k = 0; k < bytes.size(); ++k)
+        bytes[k] = static_cast<unsigned char>(img.values[k]);
+      std::ofstream(dir / file, std::ios::binary)
+          .write(reinterpret_cast<const char*>(bytes.data()), std::streamsize(bytes.size()));
+      frames.push_back({{"file", file}, {"width", img.shape[1]}, {"height", img.shape[0]}});
+    }
+    index["probes"].push_back({{"name", p.name}, {"frames", frames}});
+  }
+  std::ofstream(dir / "index.json") << index.dump();
+}
+
+struct Timed {
+  double seconds = 0;  // the run's wall time over all probes
+  jr2::StageSeconds stages;
+};
+
+Timed run_ours(const jr2::ProbePipeline& pipeline, Stream& stream, const Device& device,
+               const Probe& p, std::uint64_t seed) {
+  const auto t0 = std::chrono::steady_clock::now();
+  // The sampled frames are the ones the peer gets (the sampler's seed is the probe's).
+  const jr2::ProbeOutcome po = pipeline.run(
+      stream, int(p.frames.size()),
+      [&](int f) { return nets::image_to_device(device, p.frames[std::size_t(f)]); }, seed);
+  Timed t;
+  t.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  t.stages = po.seconds;
+  return t;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v.empty() ? 0 : v[v.size() / 2];
+}
+
+void run_bench_pipeline(const PipelineArgs& a) {
+  DeviceOptions options;
+  options.selector = a.device;
+  options.validation = false;
+  const Device device(options);
+  const jr2::FaceAnalyzer analyzer(device);
+  jr2::ProtocolOptions matched;  // face-api's work: one input size, its crop
+  matched.input_sizes = {160};
+  matched.aligns = {jr2::AlignMode::face_api};
+  const jr2::ProtocolOptions protocol;  // vkjr2 eval's default
+  const jr2::ProbePipeline ours_matched(analyzer, matched), ours_protocol(analyzer, protocol);
+
+  std::fprintf(stderr, "bench pipeline: making %d probe videos of %d frames (D/r0 %.1f)...\n",
+               a.probes, a.frames, a.d_over_r0);
+  const std::vector<Probe> probes = make_probes(device, analyzer, a, matched.sampler);
+  const fs::path frames_dir =
+      fs::temp_directory_path() / ("vkjr2_bench_pipeline_" + std::to_string(::getpid()));
+  write_frames(frames_dir, probes, matched.input_sizes.front());
+  std::fprintf(stderr, "bench pipeline: starting face-api on TF.js...\n");
+  bench::TfjsServer tfjs(a.tfjs, a.faceapi_script, {"--frames", frames_dir.string()});
+  if (!tfjs.available())
+    std::fprintf(stderr, "bench pipeline: no TF.js peer: %s\n", tfjs.reason().c_str());
+
+  Stream stream(device);
+  std::vector<double> t_matched, t_protocol, t_tfjs;
+  jr2::StageSeconds s_matched, s_protocol;
+  for (int r = 0; r <= a.runs; ++r) {  // run 0 warms every peer up
+    double m = 0, pr = 0, tf = 0;
+    jr2::StageSeconds sm, sp;
+    for (std::size_t i = 0; i < probes.size(); ++i) {
+      const Timed tm = run_ours(ours_matched, stream, device, probes[i], std::uint64_t(i) + 1);
+      if (tfjs.available()) tf += tfjs.run(probes[i].name);
+      const Timed tp = run_ours(ours_protocol, stream, device, probes[i], std::uint64_t(i) + 1);
+      m += tm.seconds;
+      pr += tp.seconds;
+      for (auto [dst, src] : {std::pair{&sm, &tm.stages}, std::pair{&sp, &tp.stages}}) {
+        dst->frames += src->frames;
+        dst->detect += src->detect;
+        dst->landmarks += src->landmarks;
+        dst->align_embed += src->align_embed;
+        dst->fusion += src->fusion;
+      }
+    }
+    std::fprintf(stderr,
+                 "bench pipeline: run %d/%d: %.2f s matched, %.2f s protocol, %.2f s face-api\n", r,
+                 a.runs, m, pr, tf);
+    if (r == 0) continue;
+    t_matched.push_back(m);
+    t_protocol.push_back(pr);
+    t_tfjs.push_back(tf);
+    if (r == 1 || m < median(t_matched)) s_matched = sm;  // stages of a typical run
+    if (r == 1 || pr < median(t_protocol)) s_protocol = sp;
+  }
+  std::error_code ec;
+  fs::remove_all(frames_dir, ec);
+
+  const double n = double(probes.size());
+  const double peer_fps = tfjs.available() ? n / median(t_tfjs) : 0;
+  const std::string peer = tfjs.available() ? "face-api TF.js WASM 1 thread, 160, 8 frames"
+                                            : "face-api TF.js (unavailable)";
+  std::vector<bench::Result> results = {
+      {"pipeline 1 size (160), face_api crop", n / median(t_matched), "probes/s", peer, peer_fps},
+      {"pipeline protocol (416,160,320; 2 aligns)", n / median(t_protocol), "probes/s", peer,
+       peer_fps},
+  };
+  bench::print_table(
+      "vkjr2 bench pipeline: probe videos through sampler → detect → landmarks → "
+      "align → embed → template",
+      device, results);
+  const auto stage_row = [&](const char* name, const jr2::StageSeconds& s) {
+    const double total = s.total();
+    const auto ms = [&](double v) { return 1000 * v / n; };
+    std::printf("%-42s %8.1f %8.1f %8.1f %8.1f %8.2f %8.1f ms/probe  (detect %.0f %%)\n", name,
+                ms(s.frames), ms(s.detect), ms(s.landmarks), ms(s.align_embed), ms(s.fusion),
+                ms(total), total > 0 ? 100 * s.detect / total : 0.0);
+  };
+  std::printf("\nper stage (ms per probe of %zu sampled frames):\n%-42s %8s %8s %8s %8s %8s %8s\n",
+              probes.front().sampled.size(), "", "frames", "detect", "landmk", "align+emb",
+              "template", "total");
+  stage_row("1 size (160), face_api crop", s_matched);
+  stage_row("protocol (416,160,320; 2 aligns)", s_protocol);
+  std::printf(
+      "\n%d probes of %d frames (%dx%d clips, D/r0 %.1f), sampler %s; median of %d runs "
+      "after 1 warm-up, the peers' runs interleaved.\nTF.js peer: %s\n",
+      a.probes, a.frames, a.clip, a.clip, a.d_over_r0, jr2::to_string(matched.sampler).c_str(),
+      a.runs, tfjs.available() ? tfjs.peer().c_str() : tfjs.reason().c_str());
+
+  json j = bench::to_json(device, results);
+  const auto stages_json = [](const jr2::StageSeconds& s, double count) {
+    return json{{"frames_s", s.frames / count},       {"detect_s", s.detect / count},
+                {"landmarks_s", s.landmarks / count}, {"align_embed_s", s.align_embed / count},
+                {"template_s", s.fusion / count},     {"total_s", s.total() / count}};
+  };
+  j["stages_per_probe"] = {{"matched", stages_json(s_matched, n)},
+                           {"protocol", stages_json(s_protocol, n)}};
+  j["probes"] = a.probes;
+  j["frames_per_probe"] = a.frames;
+  j["sampled_frames"] = probes.front().sampled.size();
+  j["runs"] = a.runs;
+  j["tfjs"] = tfjs.available() ? tfjs.about() : json(tfjs.reason());
+  if (!a.json_path.empty()) bench::write_json(a.json_path, j);
+  if (a.json_out) std::printf("%s\n", j.dump(2).c_str());
+}
+
+}  // namespace
+}  // namespace vkjr2::cli
+
+namespace {
+
+int run(int argc, char** argv) {
+  using namespace vkjr2::cli;
+  CLI::App app{"Probe videos/s through the JR² recognition pipeline against face-api on TF.js",
+               "vkjr2 bench pipeline"};
+  add_logging_options(app);
+  PipelineArgs a;
+  app.footer(
+      "Makes --probes turbulent probe videos (face clips of the sample photos cut as vkjr2 dataset "
+      "make\n"
+      "cuts them), then times each through vkjr2's pipeline (sampler segments:4x2 → detect → "
+      "landmarks\n"
+      "→ align → descriptor → template) twice: with face-api's work (detector at 160, its crop) "
+      "and with\n"
+      "vkjr2 eval's protocol (416, 160, 320 merged by NMS, both alignments); and face-api on TF.js "
+      "WASM\n"
+      "(node bench/faceapi_bench.mjs) running detect + landmarks + descriptors on the same sampled "
+      "frames.\n"
+      "Prints probes/s, the ratio, and the time per stage.\n"
+      "Example:\n  vkjr2 bench pipeline --json-file bench_pipeline.json\n"
+      "The other benchmarks: vkjr2 bench --help (bench/RESULTS.md has the latest figures).");
+  app.add_option("--probes", a.probes, "Probe videos")
+      ->default_val(6)
+      ->check(integer_range(1, 100));
+  app.add_option("--frames", a.frames, "Frames per probe video")
+      ->default_val(30)
+      ->check(integer_range(8, 1000));
+  app.add_option("--runs", a.runs, "Timed runs (median), after one warm-up")
+      ->default_val(3)
+      ->check(integer_range(1, 100));
+  app.add_option("--d-over-r0", a.d_over_r0, "Turbulence strength D/r0 of the probes")
+      ->default_val(3.0)
+      ->check(finite_range(0.1, 20.0));
+  app.add_flag("!--no-tfjs", a.tfjs, "Skip the TF.js peer");
+  app.add_option("--faceapi-script", a.faceapi_script, "The TF.js peer's script");
+  app.add_option("--device", a.device, "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  app.add_option("--json-file", a.json_path, "Also write the results as JSON here");
+  app.add_flag("--json", a.json_out, "Print the JSON after the table");
+  app.callback([&a] { run_bench_pipeline(a); });
+  return run_program(app, argc, argv);
+}
+
+}  // namespace
+
+int main(int argc, char** argv) { return vkjr2::cli::program_main(argc, argv, run); }
