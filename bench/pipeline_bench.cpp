@@ -94,16 +94,17 @@ std::vector<Probe> make_probes(const Device& device, const jr2::FaceAnalyzer& an
   const auto blur = sim::load_shipped_blur_models(device);
   const sim::SimOptions so = jr2::probe_sim_options();
   const int c = a.clip;
+  const auto pixels = std::size_t(c) * std::size_t(c);
   const Shape shape{1, 3, c, c};
   const Tensor x = Tensor::empty(device, shape), y = Tensor::empty(device, shape);
   std::vector<Probe> probes;
   for (int i = 0; i < a.probes; ++i) {
     const auto& [photo, box] = faces[std::size_t(i) % faces.size()];
     const HostTensor clip = face_clip(photo, box, c, a.face_px);
-    std::vector<float> planes(std::size_t(3 * c * c));
-    for (std::size_t k = 0; k < std::size_t(c * c); ++k) {
+    std::vector<float> planes(3 * pixels);
+    for (std::size_t k = 0; k < pixels; ++k) {
       for (std::size_t ch = 0; ch < 3; ++ch)
-        planes[ch * std::size_t(c * c) + k] = clip.values[k * 3 + ch] / 255.f;
+        planes[ch * pixels + k] = clip.values[k * 3 + ch] / 255.f;
     }
     x.upload(planes);
     sim::Simulator simulator(device, jr2::probe_sim_params(a.d_over_r0, c), blur, so);
@@ -116,11 +117,10 @@ std::vector<Probe> make_probes(const Device& device, const jr2::FaceAnalyzer& an
       const std::vector<float> v = y.download();
       HostTensor frame;
       frame.shape = {c, c, 3};
-      frame.values.resize(std::size_t(3 * c * c));
-      for (std::size_t k = 0; k < std::size_t(c * c); ++k) {
+      frame.values.resize(3 * pixels);
+      for (std::size_t k = 0; k < pixels; ++k) {
         for (std::size_t ch = 0; ch < 3; ++ch) {
-          frame.values[k * 3 + ch] =
-              std::round(std::clamp(v[ch * std::size_t(c * c) + k] * 255.f, 0.f, 255.f));
+          frame.values[k * 3 + ch] = std::round(std::clamp(v[ch * pixels + k] * 255.f, 0.f, 255.f));
         }
       }
       probe.frames.push_back(std::move(frame));

@@ -51,6 +51,8 @@ std::string safe_name(const std::string& id) {
   return s;
 }
 
+std::string in_quotes(const std::string& s) { return "'" + s + "'"; }
+
 [[noreturn]] void bad(const std::string& what, const std::string& problem,
                       const std::string& fix = "make the benchmark again with vkjr2 dataset make") {
   throw InvalidArgument("manifest", what + ": " + problem, fix);
@@ -166,12 +168,13 @@ std::vector<StrengthRange> parse_strengths(const std::string& names) {
     const auto it = std::find_if(known.begin(), known.end(),
                                  [&](const StrengthRange& s) { return s.name == name; });
     if (it == known.end()) {
-      throw InvalidArgument("strengths", "unknown strength '" + name + "' in '" + names + "'",
+      throw InvalidArgument("strengths",
+                            in_quotes(name) + " in " + in_quotes(names) + " is unknown",
                             "use a comma-separated list of weak, moderate, strong");
     }
     if (std::any_of(out.begin(), out.end(),
                     [&](const StrengthRange& s) { return s.name == name; })) {
-      throw InvalidArgument("strengths", "'" + name + "' named twice in '" + names + "'",
+      throw InvalidArgument("strengths", in_quotes(name) + " is named twice in " + in_quotes(names),
                             "name each strength once");
     }
     out.push_back(*it);

@@ -54,7 +54,7 @@ TEST(ProbePipeline, TracksAStillFaceAndMatchesItsGalleryDescriptor) {
   fo.descriptors = false;
   const auto faces = analyzer().analyze(s, nets::image_to_device(test::device(), photo), fo);
   ASSERT_FALSE(faces.empty());
-  const Tensor clip = nets::image_to_device(test::device(), face_clip(photo, faces[0].box));
+  Tensor clip = nets::image_to_device(test::device(), face_clip(photo, faces[0].box));
 
   ProtocolOptions o;
   o.sampler = parse_frame_sampler("uniform:3");
@@ -119,7 +119,7 @@ TEST(ProbePipeline, NoFaceNoTemplate) {
   noise.shape = {160, 160, 3};
   noise.values.resize(160 * 160 * 3);
   for (float& v : noise.values) v = u(rng);
-  const Tensor img = nets::image_to_device(test::device(), noise);
+  Tensor img = nets::image_to_device(test::device(), noise);
   Stream s(test::device());
   const ProbePipeline pipeline(analyzer(), ProtocolOptions{});
   const ProbeOutcome po = pipeline.run(

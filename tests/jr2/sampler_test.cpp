@@ -20,8 +20,8 @@ TEST(FrameSampler, PaperSegmentsOfThirtyFrames) {
     EXPECT_TRUE(std::is_sorted(f.begin(), f.end()));
     // Parts [0,7) [7,15) [15,22) [22,30): two consecutive frames inside each.
     const int bounds[5] = {0, 7, 15, 22, 30};
-    for (int p = 0; p < 4; ++p) {
-      const int a = f[std::size_t(2 * p)], b = f[std::size_t(2 * p + 1)];
+    for (std::size_t p = 0; p < 4; ++p) {
+      const int a = f[2 * p], b = f[2 * p + 1];
       EXPECT_EQ(b, a + 1);
       EXPECT_GE(a, bounds[p]);
       EXPECT_LT(b, bounds[p + 1]);
