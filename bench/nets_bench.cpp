@@ -12,6 +12,7 @@
 #include <vkjr2/nets/face_recognition.hpp>
 #include <vkjr2/nets/tfjs_weights.hpp>
 #include <vkjr2/nets/tiny_face_detector.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/runtime/npy.hpp>
 
 #include <opencv2/core.hpp>
@@ -96,14 +97,8 @@ HostTensor read_parity(const fs::path& dir, const std::string& file) {
 std::vector<float> hwc_to_nchw(const std::vector<const HostTensor*>& images) {
   std::vector<float> out;
   for (const HostTensor* img : images) {
-    const auto h = std::size_t(img->shape[0]), w = std::size_t(img->shape[1]),
-               c = std::size_t(img->shape[2]);
-    const std::size_t base = out.size();
-    out.resize(base + c * h * w);
-    for (std::size_t y = 0; y < h; ++y)
-      for (std::size_t x = 0; x < w; ++x)
-        for (std::size_t k = 0; k < c; ++k)
-          out[base + (k * h + y) * w + x] = img->values[(y * w + x) * c + k];
+    const std::vector<float> planes = vkjr2::image_to_planes(*img);
+    out.insert(out.end(), planes.begin(), planes.end());
   }
   return out;
 }

@@ -9,6 +9,7 @@
 #include <vkjr2/nets/face_common.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/params.hpp>
@@ -94,19 +95,13 @@ std::vector<Probe> make_probes(const Device& device, const jr2::FaceAnalyzer& an
   const auto blur = sim::load_shipped_blur_models(device);
   const sim::SimOptions so = jr2::probe_sim_options();
   const int c = a.clip;
-  const auto pixels = std::size_t(c) * std::size_t(c);
   const Shape shape{1, 3, c, c};
   const Tensor x = Tensor::empty(device, shape), y = Tensor::empty(device, shape);
   std::vector<Probe> probes;
   for (int i = 0; i < a.probes; ++i) {
     const auto& [photo, box] = faces[std::size_t(i) % faces.size()];
     const HostTensor clip = face_clip(photo, box, c, a.face_px);
-    std::vector<float> planes(3 * pixels);
-    for (std::size_t k = 0; k < pixels; ++k) {
-      for (std::size_t ch = 0; ch < 3; ++ch)
-        planes[ch * pixels + k] = clip.values[k * 3 + ch] / 255.f;
-    }
-    x.upload(planes);
+    x.upload(image_to_planes(clip, 3, 255.f));
     sim::Simulator simulator(device, jr2::probe_sim_params(a.d_over_r0, c), blur, so);
     simulator.reset(std::uint64_t(i) + 1);
     Probe probe;
@@ -114,15 +109,9 @@ std::vector<Probe> make_probes(const Device& device, const jr2::FaceAnalyzer& an
     for (int t = 0; t < a.frames; ++t) {
       simulator.frame(stream, x, y);
       stream.run();
-      const std::vector<float> v = y.download();
-      HostTensor frame;
-      frame.shape = {c, c, 3};
-      frame.values.resize(3 * pixels);
-      for (std::size_t k = 0; k < pixels; ++k) {
-        for (std::size_t ch = 0; ch < 3; ++ch) {
-          frame.values[k * 3 + ch] = std::round(std::clamp(v[ch * pixels + k] * 255.f, 0.f, 255.f));
-        }
-      }
+      // 8 bits, as a video file holds the frame.
+      HostTensor frame = planes_to_image(y.download(), 3, c, c, 3, 255.f);
+      for (float& v : frame.values) v = std::round(v);
       probe.frames.push_back(std::move(frame));
     }
     probe.sampled = jr2::sample_frames(a.frames, sampler, std::uint64_t(i) + 1);

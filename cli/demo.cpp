@@ -1,11 +1,13 @@
 // vkjr2 demo: the turbulence-vs-recognition study on media Debian and npm ship.
 #include <vkjr2/jr2/faces.hpp>
+#include <vkjr2/jr2/metrics.hpp>
 #include <vkjr2/kernels/elementwise.hpp>
 #include <vkjr2/nets/face_box.hpp>
 #include <vkjr2/nets/face_common.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/host_tensor.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
 
@@ -73,16 +75,6 @@ cv::Mat to_bgr(const Image& img) {
   cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
   bgr.convertTo(out, CV_8UC3);
   return out;
-}
-
-double cosine(std::span<const float> a, std::span<const float> b) {
-  double ab = 0, aa = 0, bb = 0;
-  for (std::size_t i = 0; i < a.size(); ++i) {
-    ab += double(a[i]) * b[i];
-    aa += double(a[i]) * a[i];
-    bb += double(b[i]) * b[i];
-  }
-  return ab / std::sqrt(aa * bb);
 }
 
 void label(cv::Mat& img, const nets::FaceBox& box, const std::string& text,
@@ -209,14 +201,14 @@ void run_demo(const DemoArgs& a) {
       st.tilt_std_px = sim.derived().channels[0].tilt_std_px;
       sim.reset(a.seed + 1000 * s + p);
       const Shape shape{1, 3, ph.rgb.shape[0], ph.rgb.shape[1]};
-      const Tensor x = Tensor::from(device, shape, to_planes(ph.rgb, 3));
+      const Tensor x = Tensor::from(device, shape, image_to_planes(ph.rgb, 3, 255.f));
       const Tensor y = Tensor::empty(device, shape), y255 = Tensor::empty(device, shape);
       for (int t = 0; t < a.frames; ++t) {
         sim.frame(stream, x, y);
         kernels::scale_shift(stream, y, 255.f, 0.f, y255);
         const auto faces = analyzer.analyze(stream, y255, fo);
         cv::Mat panel;
-        if (t == 0) panel = to_bgr(from_planes(y.download(), 3, shape[2], shape[3]));
+        if (t == 0) panel = to_bgr(planes_to_image(y.download(), 3, shape[2], shape[3], 3, 255.f));
         for (std::size_t i = 0; i < ph.faces.size(); ++i) {
           ++st.expected;
           const jr2::Face* best = nullptr;
@@ -232,7 +224,7 @@ void run_demo(const DemoArgs& a) {
           ++st.detected;
           const double d = jr2::descriptor_distance(best->descriptor, ph.faces[i].descriptor);
           st.distance_sum += d;
-          st.cosine_sum += cosine(best->descriptor, ph.faces[i].descriptor);
+          st.cosine_sum += jr2::cosine_similarity(best->descriptor, ph.faces[i].descriptor);
           const auto ranked = jr2::rank_identities(gallery, best->descriptor);
           const bool ok = !ranked.empty() && ranked.front().identity == ph.ids[i];
           st.rank1 += ok ? 1 : 0;
@@ -292,10 +284,10 @@ void run_demo(const DemoArgs& a) {
         x = Tensor::empty(device, {1, 3, h, w});
         y = Tensor::empty(device, {1, 3, h, w});
       }
-      x.upload(to_planes(img, 3));
+      x.upload(image_to_planes(img, 3, 255.f));
       vsim->frame(stream, x, y);
       stream.run();
-      writer->write(from_planes(y.download(), 3, h, w));
+      writer->write(planes_to_image(y.download(), 3, h, w, 3, 255.f));
       bar.update(++done);
     });
     writer->finish();

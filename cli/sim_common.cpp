@@ -179,33 +179,4 @@ void check_blur_models(const PathArgs& a, const sim::Params& params,
   }
 }
 
-std::vector<float> to_planes(const Image& img, int channels) {
-  const std::size_t hw = std::size_t(img.shape[0] * img.shape[1]);
-  std::vector<float> out(hw * std::size_t(channels));
-  for (std::size_t i = 0; i < hw; ++i) {
-    const float* px = &img.values[i * 3];
-    if (channels == 1) {
-      out[i] = (px[0] + px[1] + px[2]) / (3 * 255.f);
-    } else {
-      for (int c = 0; c < 3; ++c) out[std::size_t(c) * hw + i] = px[c] / 255.f;
-    }
-  }
-  return out;
-}
-
-Image from_planes(const std::vector<float>& planes, int channels, std::int64_t height,
-                  std::int64_t width) {
-  Image img;
-  img.shape = {height, width, 3};
-  const std::size_t hw = std::size_t(height * width);
-  img.values.resize(hw * 3);
-  for (std::size_t i = 0; i < hw; ++i) {
-    for (int c = 0; c < 3; ++c) {
-      const float v = planes[(channels == 1 ? 0 : std::size_t(c)) * hw + i];
-      img.values[i * 3 + std::size_t(c)] = std::clamp(v, 0.f, 1.f) * 255.f;
-    }
-  }
-  return img;
-}
-
 }  // namespace vkjr2::cli

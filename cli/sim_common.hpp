@@ -40,10 +40,4 @@ void check_blur_models(const PathArgs& a, const sim::Params& params,
 // "rgb" → sim::kRgbWavelengthsM; "610,525,465" → metres. Throws InvalidArgument naming the option.
 std::vector<double> parse_wavelengths_nm(const std::string& text, const std::string& option);
 
-// HWC RGB 0..255 → CHW 0..1 (grey: the mean of R, G, B).
-std::vector<float> to_planes(const Image& img, int channels);
-// CHW 0..1 → HWC RGB 0..255 (clamped; grey repeated).
-Image from_planes(const std::vector<float>& planes, int channels, std::int64_t height,
-                  std::int64_t width);
-
 }  // namespace vkjr2::cli

@@ -1,6 +1,7 @@
 // vkjr2 simulate: degrade an image or a video with the fast turbulence simulator.
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
@@ -179,10 +180,10 @@ json simulate_one(const Device& device,
                   "re-encode it at one size");
     }
     const int channels = sim->params().image.channels;
-    x.upload(to_planes(img, channels));
+    x.upload(image_to_planes(img, channels, 255.f));
     sim->frame(*stream, x, y);
     stream->run();
-    const Image frame = from_planes(y.download(), channels, h, w);
+    const Image frame = planes_to_image(y.download(), channels, h, w, 3, 255.f);
     if (done == 0 && !a.dump_fields.empty()) dump_fields(*sim, a.dump_fields, a.force);
     if (writer) {
       writer->write(frame);

@@ -1,6 +1,7 @@
 // vkjr2 wave: image a scene through the wave-optics reference.
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/sim/wave_image.hpp>
 
 #include <CLI/CLI.hpp>
@@ -47,12 +48,13 @@ void run_wave(WaveArgs& a) {
   sim::WaveImageReport rep;
   Progress bar("wave: source rows", 0, a.quiet);
   const auto t0 = std::chrono::steady_clock::now();
-  const auto y = sim::wave_image(device, p, a.config, to_planes(img, p.image.channels), &rep,
-                                 [&](int done, int) { bar.update(std::size_t(done)); });
+  const auto y = sim::wave_image(device, p, a.config, image_to_planes(img, p.image.channels, 255.f),
+                                 &rep, [&](int done, int) { bar.update(std::size_t(done)); });
   bar.done();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  write_image(out, from_planes(y, p.image.channels, img.shape[0], img.shape[1]), a.force);
+  write_image(out, planes_to_image(y, p.image.channels, img.shape[0], img.shape[1], 3, 255.f),
+              a.force);
   const sim::WavePlan& plan = rep.plans.front();
   for (const auto& w : plan.warnings) log_warn(w);
   if (a.json_out) {

@@ -103,40 +103,6 @@ Tensor vector_from(const Device& device, const HostTensor& v, std::int64_t expec
   return Tensor::from(device, Shape{expected}, v.values);
 }
 
-Tensor image_to_device(const Device& device, const HostTensor& img) {
-  std::vector<std::int64_t> s = img.shape;
-  if (s.size() == 4 && s[0] == 1) s.erase(s.begin());
-  if (s.size() != 3 || s[0] <= 0 || s[1] <= 0 || s[2] <= 0 ||
-      std::int64_t(img.values.size()) != s[0] * s[1] * s[2]) {
-    throw InvalidArgument("image_to_device", "image has shape " + shape_str(img.shape),
-                          "pass an H×W×C float image (e.g. a .npy of shape (h, w, 3))");
-  }
-  const std::int64_t h = s[0], w = s[1], c = s[2];
-  std::vector<float> chw(img.values.size());
-  for (std::int64_t y = 0; y < h; ++y)
-    for (std::int64_t x = 0; x < w; ++x)
-      for (std::int64_t k = 0; k < c; ++k)
-        chw[std::size_t((k * h + y) * w + x)] = img.values[std::size_t((y * w + x) * c + k)];
-  return Tensor::from(device, Shape{1, c, h, w}, chw);
-}
-
-HostTensor image_to_host(const Tensor& t) {
-  const Shape& s = t.shape();
-  if (s.rank() != 4) {
-    throw InvalidArgument("image_to_host", "tensor has shape " + s.str(), "pass an NCHW tensor");
-  }
-  const std::int64_t c = s[1], h = s[2], w = s[3];
-  const std::vector<float> all = t.download();
-  HostTensor out;
-  out.shape = {h, w, c};
-  out.values.resize(std::size_t(h * w * c));
-  for (std::int64_t y = 0; y < h; ++y)
-    for (std::int64_t x = 0; x < w; ++x)
-      for (std::int64_t k = 0; k < c; ++k)
-        out.values[std::size_t((y * w + x) * c + k)] = all[std::size_t((k * h + y) * w + x)];
-  return out;
-}
-
 WeightReader::WeightReader(const TfjsWeights& weights, std::string model, std::string manifest)
     : weights_(weights), model_(std::move(model)), manifest_(std::move(manifest)) {}
 

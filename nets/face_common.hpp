@@ -5,6 +5,7 @@
 #include <vkjr2/kernels/resize.hpp>
 #include <vkjr2/nets/autograd.hpp>
 #include <vkjr2/runtime/host_tensor.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/runtime/tensor.hpp>
 
 #include <array>
@@ -42,9 +43,10 @@ struct InputAffine {
 };
 InputAffine mean_rgb_affine(const Device& device, const std::array<float, 3>& mean_rgb);
 
-// HWC (or 1×HWC) float image → device tensor [1, C, H, W]; and back.
-Tensor image_to_device(const Device& device, const HostTensor& hwc);
-HostTensor image_to_host(const Tensor& nchw);  // first image of the batch, HWC
+// HWC (or 1×HWC) float image → device tensor [1, C, H, W]; and back
+// (runtime/image.hpp, the one conversion every command uses).
+using vkjr2::image_to_device;
+using vkjr2::image_to_host;
 
 // Takes a model's weights from its TF.js manifest by name, checking each
 // shape and that none is used twice; finish() rejects weights the network
