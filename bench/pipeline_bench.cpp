@@ -32,6 +32,7 @@
 
 #include "cli/checks.hpp"
 #include "cli/clips.hpp"
+#include "cli/cv_image.hpp"
 #include "cli/log.hpp"
 #include "cli/run.hpp"
 #include "harness.hpp"
@@ -64,14 +65,7 @@ HostTensor read_rgb(const fs::path& path) {
     throw Error("bench pipeline", "cannot read " + path.string(),
                 "run scripts/setup (it fetches face-api's sample photos)");
   }
-  cv::Mat rgb, f;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  rgb.convertTo(f, CV_32FC3);
-  HostTensor t;
-  t.shape = {f.rows, f.cols, 3};
-  t.values.assign(reinterpret_cast<const float*>(f.datastart),
-                  reinterpret_cast<const float*>(f.dataend));
-  return t;
+  return image_from_bgr(bgr);
 }
 
 // The probes: face i of the sample photos, cut as vkjr2 dataset make cuts

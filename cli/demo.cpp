@@ -27,6 +27,7 @@
 #include "checks.hpp"
 #include "cleanup.hpp"
 #include "commands.hpp"
+#include "cv_image.hpp"
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
@@ -57,26 +58,6 @@ struct Photo {
   std::vector<std::string> ids;  // per clean face: "sampleN#i"
 };
 
-Image to_image(const cv::Mat& bgr) {
-  cv::Mat rgb, f;
-  cv::cvtColor(bgr, rgb, cv::COLOR_BGR2RGB);
-  rgb.convertTo(f, CV_32FC3);
-  Image img;
-  img.shape = {f.rows, f.cols, 3};
-  img.values.assign(reinterpret_cast<const float*>(f.datastart),
-                    reinterpret_cast<const float*>(f.dataend));
-  return img;
-}
-
-cv::Mat to_bgr(const Image& img) {
-  cv::Mat rgb(int(img.shape[0]), int(img.shape[1]), CV_32FC3,
-              const_cast<float*>(img.values.data()));  // NOLINT
-  cv::Mat bgr, out;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  bgr.convertTo(out, CV_8UC3);
-  return out;
-}
-
 void label(cv::Mat& img, const nets::FaceBox& box, const std::string& text,
            const cv::Scalar& colour) {
   const cv::Rect r(int(box.x), int(box.y), int(box.width), int(box.height));
@@ -97,7 +78,7 @@ void banner(cv::Mat& img, const std::string& text) {
 }
 
 void write_image_mat(const fs::path& path, const cv::Mat& m, bool force) {
-  Image img = to_image(m);
+  Image img = image_from_bgr(m);
   write_image(path, img, force);
 }
 
@@ -154,7 +135,7 @@ void run_demo(const DemoArgs& a) {
     cv::Mat small;
     cv::resize(m, small, cv::Size(a.width, int(std::lround(double(m.rows) * a.width / m.cols))), 0,
                0, cv::INTER_AREA);
-    photos.push_back({p.stem().string(), small, to_image(small), {}, {}});
+    photos.push_back({p.stem().string(), small, image_from_bgr(small), {}, {}});
   }
 
   const Device device = open_device(a.device);
@@ -208,7 +189,9 @@ void run_demo(const DemoArgs& a) {
         kernels::scale_shift(stream, y, 255.f, 0.f, y255);
         const auto faces = analyzer.analyze(stream, y255, fo);
         cv::Mat panel;
-        if (t == 0) panel = to_bgr(planes_to_image(y.download(), 3, shape[2], shape[3], 3, 255.f));
+        if (t == 0)
+          panel =
+              image_to_bgr(planes_to_image(y.download(), 3, shape[2], shape[3], 3, 255.f));
         for (std::size_t i = 0; i < ph.faces.size(); ++i) {
           ++st.expected;
           const jr2::Face* best = nullptr;

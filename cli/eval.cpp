@@ -125,50 +125,39 @@ void write_plots(const fs::path& out, const jr2::Evaluation& e, bool force) {
     aligns.insert(r.align);
   }
   const bool wm = methods.size() > 1, wa = aligns.size() > 1;
+  // One series per row; `points` gives a row's (x, y) points.
+  const auto plot = [&](PlotSpec spec, const char* file, const auto& points) {
+    for (const auto& r : e.rows) spec.series.push_back({row_label(r, wm, wa), points(r)});
+    write_plot(out / file, spec, force);
+  };
+  using Points = std::vector<std::pair<double, double>>;
   PlotSpec roc{"ROC (1:1 verification), split " + e.split, "FAR", "TAR", true};
   roc.steps = true;
-  double min_far = 1.0;
-  for (const auto& r : e.rows) {
-    PlotSeries s{row_label(r, wm, wa), {}};
-    for (const auto& p : r.roc) {
-      s.points.emplace_back(p.far, p.tar);
-      if (p.far > 0) min_far = std::min(min_far, p.far);
-    }
-    roc.series.push_back(std::move(s));
-  }
-  roc.x_min = std::pow(10.0, std::floor(std::log10(min_far)));
-  roc.x_max = 1;
-  write_plot(out / "roc.png", roc, force);
-
+  plot(roc, "roc.png", [](const jr2::RowMetrics& r) {
+    Points p;
+    for (const auto& q : r.roc) p.emplace_back(q.far, q.tar);
+    return p;
+  });
   PlotSpec cmc{"CMC (closed-set identification), split " + e.split, "rank", "identification rate"};
   cmc.x_min = 1;
-  std::size_t max_rank = 1;
-  for (const auto& r : e.rows) {
-    PlotSeries s{row_label(r, wm, wa), {}};
-    for (std::size_t k = 0; k < r.cmc.size(); ++k) s.points.emplace_back(double(k + 1), r.cmc[k]);
-    max_rank = std::max(max_rank, r.cmc.size());
-    cmc.series.push_back(std::move(s));
-  }
-  cmc.x_max = double(std::max<std::size_t>(max_rank, 2));
-  write_plot(out / "cmc.png", cmc, force);
-
+  std::size_t max_rank = 2;
+  for (const auto& r : e.rows) max_rank = std::max(max_rank, r.cmc.size());
+  cmc.x_max = double(max_rank);
+  plot(cmc, "cmc.png", [](const jr2::RowMetrics& r) {
+    Points p;
+    for (std::size_t k = 0; k < r.cmc.size(); ++k) p.emplace_back(double(k + 1), r.cmc[k]);
+    return p;
+  });
   PlotSpec det{"FNIR vs FPIR (open-set identification, rank " +
                    std::to_string(e.options.fnir_max_rank) + "), split " + e.split,
                "FPIR", "FNIR", true};
   det.steps = true;
   det.legend_top = true;
-  double min_fpir = 1.0;
-  for (const auto& r : e.rows) {
-    PlotSeries s{row_label(r, wm, wa), {}};
-    for (const auto& p : r.open_set) {
-      s.points.emplace_back(p.fpir, p.fnir);
-      if (p.fpir > 0) min_fpir = std::min(min_fpir, p.fpir);
-    }
-    det.series.push_back(std::move(s));
-  }
-  det.x_min = std::pow(10.0, std::floor(std::log10(min_fpir)));
-  det.x_max = 1;
-  write_plot(out / "fnir_fpir.png", det, force);
+  plot(det, "fnir_fpir.png", [](const jr2::RowMetrics& r) {
+    Points p;
+    for (const auto& q : r.open_set) p.emplace_back(q.fpir, q.fnir);
+    return p;
+  });
 }
 
 void run_eval(const EvalArgs& a) {

@@ -25,6 +25,7 @@
 #include <jpeglib.h>
 
 #include "checks.hpp"
+#include "cv_image.hpp"
 #include "log.hpp"
 
 namespace vkjr2::cli {
@@ -435,11 +436,7 @@ void write_image(const std::filesystem::path& path, const Image& image, bool for
     throw InvalidArgument("write_image", "image has shape " + vkjr2::shape_str(image.shape),
                           "pass an H×W×3 RGB image");
   }
-  const int h = int(image.shape[0]), w = int(image.shape[1]);
-  cv::Mat rgb(h, w, CV_32FC3, const_cast<float*>(image.values.data()));  // NOLINT: read only
-  cv::Mat bgr, out;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  bgr.convertTo(out, CV_8UC3);  // saturating round
+  const cv::Mat out = image_to_bgr(image);
   const std::string ext = lower_extension(path);
   const auto tmp =
       path.parent_path() / (path.filename().string() + ".tmp-" + std::to_string(::getpid()) + ext);
@@ -516,11 +513,7 @@ void VideoWriter::write(const Image& frame) {
                                              ", the video is " + std::to_string(height_) + "×" +
                                              std::to_string(width_) + "×3");
   }
-  cv::Mat rgb(height_, width_, CV_32FC3,
-              const_cast<float*>(frame.values.data()));  // NOLINT: read only
-  cv::Mat bgr, out;
-  cv::cvtColor(rgb, bgr, cv::COLOR_RGB2BGR);
-  bgr.convertTo(out, CV_8UC3);
+  const cv::Mat out = image_to_bgr(frame);
   const QuietDecoders quiet;
   state_->writer.write(out);
   ++frames_;

@@ -7,6 +7,7 @@
 #include <cmath>
 #include <cstdio>
 
+#include "cv_image.hpp"
 #include "media.hpp"
 
 namespace vkjr2::cli {
@@ -46,7 +47,17 @@ void text(cv::Mat& img, const std::string& s, cv::Point at, double scale, bool c
 
 }  // namespace
 
-void write_plot(const std::filesystem::path& path, const PlotSpec& spec, bool force) {
+void write_plot(const std::filesystem::path& path, const PlotSpec& given, bool force) {
+  PlotSpec spec = given;
+  if (spec.log_x && !(spec.x_min > 0)) {
+    double smallest = spec.x_max;
+    for (const auto& s : spec.series) {
+      for (const auto& [x, y] : s.points) {
+        if (x > 0) smallest = std::min(smallest, x);
+      }
+    }
+    spec.x_min = std::pow(10.0, std::floor(std::log10(smallest)));
+  }
   cv::Mat img(kHeight, kWidth, CV_8UC3, cv::Scalar(255, 255, 255));
   const int pw = kWidth - kLeft - kRight, ph = kHeight - kTop - kBottom;
   const double lx0 = spec.log_x ? std::log10(spec.x_min) : spec.x_min;
@@ -133,14 +144,7 @@ void write_plot(const std::filesystem::path& path, const PlotSpec& spec, bool fo
                   1, cv::LINE_AA);
     }
   }
-  cv::Mat rgb, f;
-  cv::cvtColor(img, rgb, cv::COLOR_BGR2RGB);
-  rgb.convertTo(f, CV_32FC3);
-  Image out;
-  out.shape = {f.rows, f.cols, 3};
-  out.values.assign(reinterpret_cast<const float*>(f.datastart),
-                    reinterpret_cast<const float*>(f.dataend));
-  write_image(path, out, force);
+  write_image(path, image_from_bgr(img), force);
 }
 
 }  // namespace vkjr2::cli

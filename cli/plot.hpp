@@ -17,7 +17,8 @@ struct PlotSeries {
 struct PlotSpec {
   std::string title, x_label, y_label;
   bool log_x = false;
-  double x_min = 0, x_max = 1, y_min = 0, y_max = 1;  // log_x: x_min > 0
+  // log_x with x_min ≤ 0: the decade below the smallest positive x of the series.
+  double x_min = 0, x_max = 1, y_min = 0, y_max = 1;
   bool steps = false;       // draw as a staircase (ROC, DET) instead of straight lines
   bool legend_top = false;  // the legend in the top right corner (else bottom right)
   std::vector<PlotSeries> series;

@@ -23,6 +23,20 @@ ojson interval_json(const Interval& i) {
                {"resamples", i.resamples}};
 }
 
+// An operating point: its value and interval, the target rate (`rate`:
+// "far" or "fpir"), whether it is reported, from how many negatives, its
+// threshold and the rate reached ("achieved_far"...).
+ojson operating_json(const RateWithInterval& p, const std::string& rate, double target,
+                     const char* negatives) {
+  ojson x = interval_json(p.interval);
+  x[rate] = target;
+  x["reported"] = p.point.reported;
+  x[negatives] = p.point.negatives;
+  x["threshold"] = number(p.point.threshold);
+  x["achieved_" + rate] = number(p.point.achieved);
+  return x;
+}
+
 std::string percent(double v) {
   if (!std::isfinite(v)) return "—";
   char b[32];
@@ -150,14 +164,7 @@ std::string results_json(const Evaluation& e, const std::string& setup_json) {
                         {"tracked", r.tracked}};
     ojson tar = ojson::array();
     for (std::size_t i = 0; i < r.tar.size(); ++i) {
-      const RateWithInterval& t = r.tar[i];
-      ojson x = interval_json(t.interval);
-      x["far"] = e.options.fars[i];
-      x["reported"] = t.point.reported;
-      x["impostors"] = t.point.negatives;
-      x["threshold"] = number(t.point.threshold);
-      x["achieved_far"] = number(t.point.achieved);
-      tar.push_back(x);
+      tar.push_back(operating_json(r.tar[i], "far", e.options.fars[i], "impostors"));
     }
     row["tar_at_far"] = tar;
     ojson ranks = ojson::array();
@@ -170,14 +177,8 @@ std::string results_json(const Evaluation& e, const std::string& setup_json) {
     row["rank"] = ranks;
     ojson fnir = ojson::array();
     for (std::size_t i = 0; i < r.fnir.size(); ++i) {
-      const RateWithInterval& f = r.fnir[i];
-      ojson x = interval_json(f.interval);
-      x["fpir"] = e.options.fpirs[i];
-      x["reported"] = f.point.reported;
-      x["nonmated_searches"] = f.point.negatives;
-      x["threshold"] = number(f.point.threshold);
-      x["achieved_fpir"] = number(f.point.achieved);
-      x["tpir"] = number(1.0 - f.point.value);
+      ojson x = operating_json(r.fnir[i], "fpir", e.options.fpirs[i], "nonmated_searches");
+      x["tpir"] = number(1.0 - r.fnir[i].point.value);
       fnir.push_back(x);
     }
     row["fnir_at_fpir"] = fnir;
