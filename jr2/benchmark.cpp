@@ -220,7 +220,7 @@ Manifest plan_benchmark(const std::vector<SourceImage>& images, const BenchmarkO
   std::map<std::string, std::string> split_of;  // identity → "val"/"test"/"all"
   std::map<std::string, bool> enrolled;
   const auto enrol = [&](const std::vector<std::string>& group) {
-    auto k = std::int64_t(std::llround(double(group.size()) * o.enrolled));
+    auto k = std::int64_t(std::floor(double(group.size()) * o.enrolled + 1e-9));
     k = std::clamp<std::int64_t>(k, 1, std::int64_t(group.size()));
     for (std::size_t i = 0; i < group.size(); ++i) enrolled[group[i]] = std::int64_t(i) < k;
   };

@@ -45,7 +45,7 @@ struct BenchmarkOptions {
   int clip_size = 160;            // probe and gallery clips are clip_size² pixels
   int face_px = 80;               // the face box's width in the clip (context: clip/face ≈ 2)
   int probes = 1;                 // probe videos per identity, strength and split
-  double enrolled = 0.5;          // the share of identities enrolled in the gallery
+  double enrolled = 0.5;          // the share of identities enrolled: ⌊share · N⌋, at least 1
   double val_share = 0.3;         // identity-disjoint splits: the share of identities in val
   int min_split_identities = 20;  // per split, for identity-disjoint splits
   std::uint64_t seed = 1;
