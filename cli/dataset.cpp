@@ -292,7 +292,7 @@ void run_make(const MakeArgs& a) {
   const sim::SimOptions so = jr2::probe_sim_options();
   for (const jr2::ProbeItem& p : part.probes) {
     const fs::path file = out / p.file;
-    if (a.resume && exists(file)) {
+    if (a.resume && exists(file) && exists(out / p.clean_file)) {
       ++kept;
       done += std::size_t(o.frames);
       bar.update(done);
@@ -301,7 +301,10 @@ void run_make(const MakeArgs& a) {
     create_output_folder(file.parent_path(), "--out");
     const fs::path src = root / p.source.path;
     const nets::FaceBox box = face_box(faces, src, p.source, bundled, undetected);
-    const Image clip = face_clip(faces.image(src), box, c, o.face_px);
+    // 8-bit, as written: the clean file is exactly what went into the simulator.
+    Image clip = face_clip(faces.image(src), box, c, o.face_px);
+    for (float& v : clip.values) v = std::round(v);
+    if (!(a.resume && exists(out / p.clean_file))) write_image(out / p.clean_file, clip, a.force);
     sim::Simulator simulator(device, jr2::probe_sim_params(p.d_over_r0, c), blur, so);
     simulator.reset(p.seed);
     x.upload(image_to_planes(clip, 3, 255.f));

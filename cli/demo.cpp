@@ -190,8 +190,7 @@ void run_demo(const DemoArgs& a) {
         const auto faces = analyzer.analyze(stream, y255, fo);
         cv::Mat panel;
         if (t == 0)
-          panel =
-              image_to_bgr(planes_to_image(y.download(), 3, shape[2], shape[3], 3, 255.f));
+          panel = image_to_bgr(planes_to_image(y.download(), 3, shape[2], shape[3], 3, 255.f));
         for (std::size_t i = 0; i < ph.faces.size(); ++i) {
           ++st.expected;
           const jr2::Face* best = nullptr;

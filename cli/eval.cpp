@@ -8,6 +8,7 @@
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/host_tensor.hpp>
+#include <vkjr2/runtime/image.hpp>
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
@@ -232,8 +233,7 @@ void run_eval(const EvalArgs& a) {
   std::vector<std::vector<std::vector<float>>> gallery_templates;  // [identity][align]
   for (const jr2::GalleryItem* g : gallery) {
     const Image img = read_image(dir / g->file);
-    gallery_templates.push_back(
-        pipeline.describe_gallery(stream, nets::image_to_device(device, img)));
+    gallery_templates.push_back(pipeline.describe_gallery(stream, image_to_device(device, img)));
     gallery_index[g->identity] = int(gallery_ids.size());
     gallery_ids.push_back(g->identity);
     bar.update(++done);
@@ -243,12 +243,24 @@ void run_eval(const EvalArgs& a) {
   for (std::size_t pi = 0; pi < probes.size(); ++pi) {
     const jr2::ProbeItem& p = *probes[pi];
     const std::vector<Image> frames = read_frames(dir / p.file);
+    const Tensor clean = image_to_device(device, read_image(dir / p.clean_file));
+    const std::uint64_t sampler_seed = a.seed * 0x9e3779b97f4a7c15ULL + pi;
     for (const std::string& method : methods) {
       // degraded: the frames as the camera gave them.
-      const jr2::ProbeOutcome po = pipeline.run(
-          stream, int(frames.size()),
-          [&](int f) { return nets::image_to_device(device, frames[std::size_t(f)]); },
-          a.seed * 0x9e3779b97f4a7c15ULL + pi);
+      const auto frame = [&](int f) { return image_to_device(device, frames[std::size_t(f)]); };
+      const jr2::ProbeOutcome po = pipeline.run(stream, int(frames.size()), frame, sampler_seed);
+      // Image quality of the same sampled frames against the clean clip.
+      std::vector<Tensor> sampled;
+      for (int f : jr2::sample_frames(int(frames.size()), protocol.sampler, sampler_seed)) {
+        sampled.push_back(frame(f));
+      }
+      if (!(sampled.front().shape() == clean.shape())) {
+        throw Error("eval",
+                    (dir / p.clean_file).string() + " is " + clean.shape().str() + ", its probe " +
+                        p.file + " has frames of " + sampled.front().shape().str(),
+                    "make the benchmark again (vkjr2 dataset make)");
+      }
+      const jr2::ClipQuality quality = jr2::clip_quality(stream, sampled, clean);
       for (std::size_t al = 0; al < protocol.aligns.size(); ++al) {
         jr2::ProbeRecord r;
         r.method = method;
@@ -267,6 +279,8 @@ void run_eval(const EvalArgs& a) {
               r.acquired ? jr2::cosine_similarity(po.templates[al], gallery_templates[g][al])
                          : jr2::kNoTemplateScore);
         }
+        r.psnr_db = quality.psnr_db;
+        r.ssim = quality.ssim;
         r.frames = int(po.frames.size());
         for (const auto& f : po.frames) {
           r.single_scale += f.single_scale ? 1 : 0;

@@ -263,8 +263,10 @@ Manifest plan_benchmark(const std::vector<SourceImage>& images, const BenchmarkO
             p.source = imgs[std::size_t(k) % imgs.size()];
             p.same_image_as_gallery = p.mated;
           }
-          p.file = "probes/" + std::string(split) + "/" + st.name + "/" + file_id[id] + "_" +
-                   std::to_string(k) + ".avi";
+          const std::string stem = "probes/" + std::string(split) + "/" + st.name + "/" +
+                                   file_id[id] + "_" + std::to_string(k);
+          p.file = stem + ".avi";
+          p.clean_file = stem + "_clean.png";
           m.probes.push_back(std::move(p));
         }
       }
@@ -403,6 +405,7 @@ std::string manifest_json(const Manifest& m) {
   ojson probes = ojson::array();
   for (const ProbeItem& p : m.probes) {
     probes.push_back(ojson{{"file", p.file},
+                           {"clean_file", p.clean_file},
                            {"identity", p.identity},
                            {"mated", p.mated},
                            {"split", p.split},
@@ -509,6 +512,7 @@ Manifest parse_manifest(const std::string& text, const std::string& what) {
     const std::string item = what + " probes[" + std::to_string(i) + "]";
     ProbeItem p;
     p.file = get_string(pj, "file", item);
+    p.clean_file = get_string(pj, "clean_file", item);
     p.identity = get_string(pj, "identity", item);
     p.mated = get_bool(pj, "mated", item);
     p.split = get_string(pj, "split", item);
@@ -522,6 +526,7 @@ Manifest parse_manifest(const std::string& text, const std::string& what) {
     if (strength_names.count(p.strength) == 0)
       bad(item, "strength '" + p.strength + "' is not among the manifest's strengths");
     check_file(p.file, item);
+    check_file(p.clean_file, item);
     if (m.shard_count == 1) {
       const auto g = gallery_split.find(p.identity);
       if (p.mated && g == gallery_split.end()) {
@@ -584,7 +589,10 @@ void check_manifest_files(const Manifest& m, const std::filesystem::path& dir) {
     }
   };
   for (const GalleryItem& g : m.gallery) check(g.file);
-  for (const ProbeItem& p : m.probes) check(p.file);
+  for (const ProbeItem& p : m.probes) {
+    check(p.file);
+    check(p.clean_file);
+  }
 }
 
 }  // namespace vkjr2::jr2

@@ -71,6 +71,7 @@ struct ProbeItem {
   double d_over_r0 = 0;
   std::uint64_t seed = 0;  // the simulator's
   std::string file;        // relative to the benchmark folder (.avi)
+  std::string clean_file;  // the clip before turbulence (.png): PSNR and SSIM are against it
   SourceImage source;
   bool same_image_as_gallery = false;  // the identity had one image only
 };

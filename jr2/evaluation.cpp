@@ -49,6 +49,17 @@ std::string with_ci(const Interval& i) {
   return percent(i.value) + " [" + percent(i.lo) + ", " + percent(i.hi) + "]";
 }
 
+// "24.31 [23.10, 25.62]" in the given format; "—" when undefined.
+std::string plain_ci(const Interval& i, const char* format) {
+  if (!std::isfinite(i.value)) return "—";
+  const auto f = [&](double v) {
+    char b[32];
+    std::snprintf(b, sizeof b, format, v);
+    return std::string(b);
+  };
+  return f(i.value) + " [" + f(i.lo) + ", " + f(i.hi) + "]";
+}
+
 std::string far_label(double f) {
   char b[32];
   std::snprintf(b, sizeof b, "%g", f);
@@ -138,6 +149,25 @@ Evaluation evaluate(std::vector<std::string> gallery, std::string split,
       row.fnir.push_back(f);
     }
     if (row.nonmated > 0 && row.mated > 0) row.open_set = open_set_curve(searches, o.fnir_max_rank);
+    // Image quality: the mean over the probes (of the drawn probes, in the
+    // bootstrap) that have a figure.
+    const std::vector<std::size_t>& members = groups[key];
+    const auto mean_of = [&](double ProbeRecord::*field) {
+      return [&, field](std::span<const std::size_t> drawn) {
+        double sum = 0;
+        std::size_t count = 0;
+        for (std::size_t k : drawn) {
+          const double x = e.records[members[k]].*field;
+          if (std::isfinite(x)) {
+            sum += x;
+            ++count;
+          }
+        }
+        return count == 0 ? std::numeric_limits<double>::quiet_NaN() : sum / double(count);
+      };
+    };
+    row.psnr_db = bootstrap_items(units, mean_of(&ProbeRecord::psnr_db), o.bootstrap);
+    row.ssim = bootstrap_items(units, mean_of(&ProbeRecord::ssim), o.bootstrap);
     e.rows.push_back(std::move(row));
   }
   return e;
@@ -182,6 +212,8 @@ std::string results_json(const Evaluation& e, const std::string& setup_json) {
       fnir.push_back(x);
     }
     row["fnir_at_fpir"] = fnir;
+    row["psnr_db"] = interval_json(r.psnr_db);
+    row["ssim"] = interval_json(r.ssim);
     ojson roc = ojson::array();
     for (const RocPoint& p : r.roc) roc.push_back({number(p.threshold), p.far, p.tar});
     row["roc"] = {{"columns", {"threshold", "far", "tar"}}, {"points", roc}};
@@ -203,8 +235,10 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
   for (double f : o.fars) md << " TAR@FAR " << far_label(f) << " |";
   for (std::size_t k : o.ranks) md << " Rank-" << k << " |";
   for (double p : o.fpirs) md << " FNIR@FPIR " << far_label(p) << " |";
+  md << " PSNR (dB) | SSIM |";
   md << "\n|---|---|---|---|---|";
-  for (std::size_t i = 0; i < o.fars.size() + o.ranks.size() + o.fpirs.size(); ++i) md << "---|";
+  for (std::size_t i = 0; i < o.fars.size() + o.ranks.size() + o.fpirs.size() + 2; ++i)
+    md << "---|";
   md << "\n";
   std::vector<std::string> notes;
   for (const RowMetrics& r : e.rows) {
@@ -224,11 +258,11 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
     for (const RateWithInterval& f : r.fnir) {
       md << " " << (f.point.reported ? with_ci(f.interval) : "n/a") << " |";
     }
-    md << "\n";
+    md << " " << plain_ci(r.psnr_db, "%.2f") << " | " << plain_ci(r.ssim, "%.3f") << " |\n";
   }
-  md << "\nAll figures are percentages with bootstrap 95 % intervals (" << o.bootstrap.resamples
-     << " resamples of identities, then of each identity's probes; seed " << o.bootstrap.seed
-     << ").\n";
+  md << "\nAll figures but PSNR and SSIM are percentages; every one has a bootstrap 95 % interval ("
+     << o.bootstrap.resamples << " resamples of identities, then of each identity's probes; seed "
+     << o.bootstrap.seed << ").\n";
   if (!e.rows.empty()) {
     const RowMetrics& r = e.rows.front();
     md << "\nWhy some cells are n/a: a FAR of f needs at least 1/f impostor pairs (this split has "
@@ -240,6 +274,8 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
   md << "\nFace found: the share of sampled frames in which the probe's face was found by the "
         "detector at one input size, at several merged by NMS, and with the track (a weaker "
         "detection where the face was in the other frames). Only tracked frames are described.\n"
+        "PSNR and SSIM: the sampled frames against the probe's clean clip (8-bit range), "
+        "the mean over a probe's frames, then over the probes.\n"
         "FNIR is at rank "
      << o.fnir_max_rank
      << " (the mate must be the top candidate and score above the threshold). A probe without any "

@@ -7,6 +7,7 @@
 #include <vkjr2/jr2/metrics.hpp>
 
 #include <cstddef>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -22,6 +23,9 @@ struct ProbeRecord {
   int mate = -1;               // index of its identity in the gallery, or -1
   int frames = 0;              // sampled frames
   int single_scale = 0, multi_scale = 0, tracked = 0;  // frames where the face was found
+  double psnr_db =
+      std::numeric_limits<double>::quiet_NaN();  // of the sampled frames vs the clean clip
+  double ssim = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct EvaluationOptions {
@@ -45,6 +49,7 @@ struct RowMetrics {
   std::vector<RateWithInterval> tar;   // per EvaluationOptions::fars
   std::vector<Interval> rank;          // per EvaluationOptions::ranks
   std::vector<RateWithInterval> fnir;  // per EvaluationOptions::fpirs
+  Interval psnr_db, ssim;              // mean over the probes that have them
   std::vector<RocPoint> roc;
   std::vector<double> cmc;             // ranks 1..min(20, gallery)
   std::vector<OpenSetPoint> open_set;  // the FNIR–FPIR curve

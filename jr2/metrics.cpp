@@ -306,14 +306,8 @@ double cosine_similarity(std::span<const float> a, std::span<const float> b) {
   return aa > 0 && bb > 0 ? ab / std::sqrt(aa * bb) : 0.0;
 }
 
-Interval bootstrap(std::span<const Search> searches, std::span<const int> unit,
-                   const SearchMetric& metric, const BootstrapOptions& options) {
-  if (unit.size() != searches.size()) {
-    throw InvalidArgument("bootstrap",
-                          std::to_string(unit.size()) + " identities for " +
-                              std::to_string(searches.size()) + " searches",
-                          "give every search its identity");
-  }
+Interval bootstrap_items(std::span<const int> unit, const IndexStatistic& statistic,
+                         const BootstrapOptions& options) {
   if (options.resamples < 1 || !(options.level > 0 && options.level < 1)) {
     throw InvalidArgument("bootstrap",
                           "resamples = " + std::to_string(options.resamples) +
@@ -321,9 +315,11 @@ Interval bootstrap(std::span<const Search> searches, std::span<const int> unit,
                           "use resamples ≥ 1 (1000 is usual) and a level in (0, 1)");
   }
   Interval iv;
-  iv.value = metric(searches);
-  if (searches.empty()) return iv;
-  // Each identity's searches, in a fixed order (by identity, then position).
+  std::vector<std::size_t> all(unit.size());
+  for (std::size_t i = 0; i < all.size(); ++i) all[i] = i;
+  iv.value = statistic(all);
+  if (unit.empty()) return iv;
+  // Each identity's items, in a fixed order (by identity, then position).
   std::map<int, std::vector<std::size_t>> by_unit;
   for (std::size_t i = 0; i < unit.size(); ++i) by_unit[unit[i]].push_back(i);
   std::vector<const std::vector<std::size_t>*> groups;
@@ -333,17 +329,17 @@ Interval bootstrap(std::span<const Search> searches, std::span<const int> unit,
   std::mt19937_64 rng(options.seed);
   std::vector<double> values;
   values.reserve(std::size_t(options.resamples));
-  std::vector<Search> sample;
-  sample.reserve(searches.size());
+  std::vector<std::size_t> sample;
+  sample.reserve(unit.size());
   for (int b = 0; b < options.resamples; ++b) {
     sample.clear();
     for (std::size_t g = 0; g < groups.size(); ++g) {
       const std::vector<std::size_t>& members = *groups[draw(rng, groups.size())];
       for (std::size_t m = 0; m < members.size(); ++m) {
-        sample.push_back(searches[members[draw(rng, members.size())]]);
+        sample.push_back(members[draw(rng, members.size())]);
       }
     }
-    const double v = metric(sample);
+    const double v = statistic(sample);
     if (std::isfinite(v)) values.push_back(v);
   }
   iv.resamples = int(values.size());
@@ -353,6 +349,25 @@ Interval bootstrap(std::span<const Search> searches, std::span<const int> unit,
   iv.lo = quantile(values, tail);
   iv.hi = quantile(values, 1.0 - tail);
   return iv;
+}
+
+Interval bootstrap(std::span<const Search> searches, std::span<const int> unit,
+                   const SearchMetric& metric, const BootstrapOptions& options) {
+  if (unit.size() != searches.size()) {
+    throw InvalidArgument("bootstrap",
+                          std::to_string(unit.size()) + " identities for " +
+                              std::to_string(searches.size()) + " searches",
+                          "give every search its identity");
+  }
+  std::vector<Search> sample;
+  return bootstrap_items(
+      unit,
+      [&](std::span<const std::size_t> drawn) {
+        sample.clear();
+        for (std::size_t i : drawn) sample.push_back(searches[i]);
+        return metric(sample);
+      },
+      options);
 }
 
 }  // namespace vkjr2::jr2

@@ -135,5 +135,10 @@ struct BootstrapOptions {
 using SearchMetric = std::function<double(std::span<const Search>)>;
 Interval bootstrap(std::span<const Search> searches, std::span<const int> unit,
                    const SearchMetric& metric, const BootstrapOptions& options);
+// The same bootstrap for any statistic of items: unit[i] is item i's
+// identity; `statistic` gets the drawn items' indices (repeats included).
+using IndexStatistic = std::function<double(std::span<const std::size_t>)>;
+Interval bootstrap_items(std::span<const int> unit, const IndexStatistic& statistic,
+                         const BootstrapOptions& options);
 
 }  // namespace vkjr2::jr2

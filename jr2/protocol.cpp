@@ -1,4 +1,5 @@
 #include <vkjr2/jr2/protocol.hpp>
+#include <vkjr2/kernels/metrics.hpp>
 #include <vkjr2/runtime/error.hpp>
 
 #include <algorithm>
@@ -183,6 +184,40 @@ std::vector<std::vector<float>> ProbePipeline::describe_gallery(Stream& stream,
     out.push_back(make_template(std::vector<std::vector<float>>{face.descriptor}, o.fusion));
   }
   return out;
+}
+
+ClipQuality clip_quality(Stream& stream, std::span<const Tensor> frames, const Tensor& clean) {
+  const Shape& cs = clean.shape();
+  if (frames.empty() || cs.rank() != 4 || cs[0] != 1) {
+    throw InvalidArgument(
+        "clip_quality",
+        std::to_string(frames.size()) + " frames against a clean clip of shape " + cs.str(),
+        "pass [1, 3, H, W] frames and their [1, 3, H, W] clean clip");
+  }
+  const auto n = std::int64_t(frames.size());
+  const std::int64_t per = cs[1] * cs[2] * cs[3];
+  const Shape batch{n, cs[1], cs[2], cs[3]};
+  const Tensor x = Tensor::empty(stream.device(), batch), y = Tensor::empty(stream.device(), batch);
+  for (std::int64_t i = 0; i < n; ++i) {
+    const Tensor& f = frames[std::size_t(i)];
+    if (!(f.shape() == cs)) {
+      throw InvalidArgument("clip_quality",
+                            "frame " + std::to_string(i) + " has shape " + f.shape().str() +
+                                ", the clean clip " + cs.str(),
+                            "compare frames of the clip's size");
+    }
+    stream.copy(f, x.view(cs, i * per));
+    stream.copy(clean, y.view(cs, i * per));
+  }
+  const Tensor psnr = Tensor::empty(stream.device(), Shape{n});
+  const Tensor ssim = Tensor::empty(stream.device(), Shape{n});
+  kernels::psnr(stream, x, y, 255.f, psnr);
+  kernels::ssim(stream, x, y, 255.f, ssim);
+  stream.run();
+  ClipQuality q;
+  for (float v : psnr.download()) q.psnr_db += double(v) / double(n);
+  for (float v : ssim.download()) q.ssim += double(v) / double(n);
+  return q;
 }
 
 }  // namespace vkjr2::jr2

@@ -20,6 +20,7 @@
 
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <vector>
 
 namespace vkjr2::jr2 {
@@ -98,6 +99,14 @@ class ProbePipeline {
   const FaceAnalyzer& analyzer_;
   ProtocolOptions options_;
 };
+
+// Image quality of a probe's frames against its clean clip: the mean over
+// the frames of PSNR (dB) and SSIM (Wang et al. 2004), 8-bit data range.
+// frames and clean: [1, 3, H, W], 0..255, all one size (else InvalidArgument).
+struct ClipQuality {
+  double psnr_db = 0, ssim = 0;
+};
+ClipQuality clip_quality(Stream& stream, std::span<const Tensor> frames, const Tensor& clean);
 
 // The score of a probe without a template against every gallery identity:
 // below every cosine similarity, so it is a miss and never a false alarm.

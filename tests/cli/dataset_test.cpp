@@ -60,12 +60,15 @@ TEST(CliDataset, ShardsEqualTheOneProcessRun) {
   std::size_t files = 0;
   for (const char* list : {"gallery", "probes"}) {
     for (const json& item : m[list]) {
-      const std::string f = item["file"];
-      EXPECT_EQ(slurp(sharded / f), slurp(one / f)) << f;
-      ++files;
+      for (const char* key : {"file", "clean_file"}) {
+        if (!item.contains(key)) continue;
+        const std::string f = item[key];
+        EXPECT_EQ(slurp(sharded / f), slurp(one / f)) << f;
+        ++files;
+      }
     }
   }
-  EXPECT_EQ(files, 15u);
+  EXPECT_EQ(files, 3u + 2 * 12);
   // A probe is a video of the frames asked for, at the clip size.
   cv::VideoCapture cap((one / m["probes"][0]["file"].get<std::string>()).string());
   ASSERT_TRUE(cap.isOpened());
@@ -133,6 +136,11 @@ TEST(CliEval, ReportsEveryMetricWithIntervalsAndPlots) {
     EXPECT_EQ(row["detection"]["frames"], 6 * 3);  // segments:4x2 of 3 frames: all 3
     EXPECT_GE(row["detection"]["tracked"], row["detection"]["multi_scale"]);
     EXPECT_GE(row["detection"]["multi_scale"], row["detection"]["single_scale"]);
+    // Weak turbulence blurs and shifts a clip a little: PSNR in the 20s–30s dB.
+    EXPECT_GT(row["psnr_db"]["value"].get<double>(), 15.0) << row.dump();
+    EXPECT_LT(row["psnr_db"]["value"].get<double>(), 50.0) << row.dump();
+    EXPECT_GT(row["ssim"]["value"].get<double>(), 0.3) << row.dump();
+    EXPECT_LT(row["ssim"]["value"].get<double>(), 1.0) << row.dump();
   }
   // scores.csv: every probe against every enrolled identity, per alignment.
   const std::string csv = slurp(out / "scores.csv");

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <random>
 
 #include "support/parity.hpp"
@@ -112,14 +113,18 @@ TEST(ProbePipeline, BatchedDescriptorsEqualOneAtATime) {
   }
 }
 
-TEST(ProbePipeline, NoFaceNoTemplate) {
+HostTensor noise_image(std::int64_t side) {
   std::mt19937 rng(5);
   std::uniform_real_distribution<float> u(0.f, 255.f);
   HostTensor noise;
-  noise.shape = {160, 160, 3};
-  noise.values.resize(160 * 160 * 3);
+  noise.shape = {side, side, 3};
+  noise.values.resize(std::size_t(side * side * 3));
   for (float& v : noise.values) v = u(rng);
-  Tensor img = nets::image_to_device(test::device(), noise);
+  return noise;
+}
+
+TEST(ProbePipeline, NoFaceNoTemplate) {
+  Tensor img = nets::image_to_device(test::device(), noise_image(160));
   Stream s(test::device());
   const ProbePipeline pipeline(analyzer(), ProtocolOptions{});
   const ProbeOutcome po = pipeline.run(
@@ -130,6 +135,26 @@ TEST(ProbePipeline, NoFaceNoTemplate) {
   // The gallery falls back to the centred box and still gives a descriptor.
   const auto g = pipeline.describe_gallery(s, img);
   EXPECT_EQ(g[0].size(), 128u);
+}
+
+TEST(ProbePipeline, ClipQualityIsTheMeanOverFrames) {
+  HostTensor clean;
+  clean.shape = {24, 20, 3};
+  std::mt19937 rng(9);
+  std::uniform_real_distribution<float> u(20.f, 230.f);
+  for (int i = 0; i < 24 * 20 * 3; ++i) clean.values.push_back(std::round(u(rng)));
+  HostTensor shifted = clean;
+  for (float& v : shifted.values) v += 5.f;  // MSE 25: PSNR 10·log10(255²/25) = 34.15 dB
+  Stream s(test::device());
+  const Tensor c = nets::image_to_device(test::device(), clean);
+  const std::vector<Tensor> frames = {nets::image_to_device(test::device(), shifted),
+                                      nets::image_to_device(test::device(), shifted)};
+  const ClipQuality q = clip_quality(s, frames, c);
+  EXPECT_NEAR(q.psnr_db, 10 * std::log10(255.0 * 255.0 / 25.0), 1e-3);
+  EXPECT_GT(q.ssim, 0.9);  // a brightness shift of 5 barely changes the structure
+  EXPECT_LT(q.ssim, 1.0);
+  const std::vector<Tensor> wrong = {nets::image_to_device(test::device(), noise_image(10))};
+  EXPECT_THROW(clip_quality(s, wrong, c), InvalidArgument);
 }
 
 TEST(ProbePipeline, ChecksItsOptions) {
