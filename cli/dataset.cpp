@@ -142,9 +142,12 @@ bool straddles(const std::vector<jr2::Face>& found, std::size_t f) {
 // The bundled photos: every face the detector finds in a clean photo is its
 // own identity ("sample1#2": the second face of sample1.jpg, by score), but
 // for boxes that straddle stronger ones.
-std::vector<jr2::SourceImage> bundled_source(FaceSource& faces) {
+// max_identities > 0: the photos are read only until that many faces are
+// found (the first N identities by name come from the first photos).
+std::vector<jr2::SourceImage> bundled_source(FaceSource& faces, int max_identities) {
   std::vector<jr2::SourceImage> images;
   for (int i = 1; i <= 6; ++i) {
+    if (max_identities > 0 && images.size() >= std::size_t(max_identities)) break;
     const std::string name = "sample" + std::to_string(i) + ".jpg";
     const fs::path p = bundled_root() / name;
     std::error_code ec;
@@ -242,7 +245,8 @@ void run_make(const MakeArgs& a) {
   const jr2::FaceAnalyzer analyzer(device);
   Stream stream(device);
   FaceSource faces(analyzer, stream, a.input_size);
-  std::vector<jr2::SourceImage> images = bundled ? bundled_source(faces) : folder_source(root);
+  std::vector<jr2::SourceImage> images =
+      bundled ? bundled_source(faces, a.max_identities) : folder_source(root);
   if (a.max_identities > 0) {  // the first N identities by name
     std::set<std::string> ids;
     for (const auto& im : images) ids.insert(im.identity);
