@@ -280,7 +280,7 @@ int run(int argc, char** argv) {
       "landmarks\n"
       "→ align → descriptor → template) twice: with face-api's work (detector at 160, its crop) "
       "and with\n"
-      "vkjr2 eval's protocol (416, 160, 320 merged by NMS, both alignments); and face-api on TF.js "
+      "vkjr2 eval's protocol (416, 160, 320 pooled, both alignments); and face-api on TF.js "
       "WASM\n"
       "(node bench/faceapi_bench.mjs) running detect + landmarks + descriptors on the same sampled "
       "frames.\n"

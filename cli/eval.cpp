@@ -247,13 +247,15 @@ void run_eval(const EvalArgs& a) {
     const std::uint64_t sampler_seed = a.seed * 0x9e3779b97f4a7c15ULL + pi;
     for (const std::string& method : methods) {
       // degraded: the frames as the camera gave them.
-      const auto frame = [&](int f) { return image_to_device(device, frames[std::size_t(f)]); };
+      // The sampled frames are uploaded once: the pipeline asks for them,
+      // the image quality reads them again.
+      std::vector<Tensor> sampled;
+      const auto frame = [&](int f) {
+        sampled.push_back(image_to_device(device, frames[std::size_t(f)]));
+        return sampled.back();
+      };
       const jr2::ProbeOutcome po = pipeline.run(stream, int(frames.size()), frame, sampler_seed);
       // Image quality of the same sampled frames against the clean clip.
-      std::vector<Tensor> sampled;
-      for (int f : jr2::sample_frames(int(frames.size()), protocol.sampler, sampler_seed)) {
-        sampled.push_back(frame(f));
-      }
       if (!(sampled.front().shape() == clean.shape())) {
         throw Error("eval",
                     (dir / p.clean_file).string() + " is " + clean.shape().str() + ", its probe " +
@@ -333,7 +335,7 @@ void run_eval(const EvalArgs& a) {
                 "identities under other turbulence realizations, so thresholds chosen on val "
                 "have seen these faces.")
       << "\n\nProtocol: frames " << jr2::to_string(protocol.sampler) << ", detector input sizes "
-      << sizes << " (merged by NMS) with the track, alignment " << align_names << ", templates "
+      << sizes << " (pooled) with the track, alignment " << align_names << ", templates "
       << jr2::template_fusion_name(protocol.fusion)
       << ", scores = cosine similarity of templates. Device: " << device.info().name << "; "
       << std::lround(seconds) << " s.\n";
@@ -374,7 +376,7 @@ void add_eval(CLI::App& app) {
       "every probe\n"
       "video of the split goes through the JR² pipeline: frame sampler → detection at several "
       "input\n"
-      "sizes merged by NMS, with the probe's face track → 68 landmarks → alignment → descriptor →\n"
+      "sizes pooled, with the probe's face track → 68 landmarks → alignment → descriptor →\n"
       "template; each probe template is scored (cosine similarity) against every gallery "
       "template.\n"
       "Reports, per method × alignment × strength: the detection rate (1 size / multi-size / "
@@ -403,7 +405,7 @@ void add_eval(CLI::App& app) {
   cmd->add_option("--fusion", a->fusion, "Template of a probe's frames: norm_weighted or mean")
       ->default_val("norm_weighted");
   cmd->add_option("--input-sizes", a->input_sizes,
-                  "Detector input sizes, merged by NMS (the first alone is the baseline)")
+                  "Detector input sizes, pooled (the first alone is the baseline)")
       ->default_val("416,160,320");
   cmd->add_option("--resamples", a->resamples, "Bootstrap resamples of each interval")
       ->default_val(1000)

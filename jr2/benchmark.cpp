@@ -11,6 +11,8 @@
 #include <set>
 #include <sstream>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
@@ -26,16 +28,13 @@ std::uint64_t splitmix(std::uint64_t x) {
 }
 double unit_interval(std::uint64_t bits) { return double(bits >> 11) * 0x1.0p-53; }
 
-// Fisher–Yates with an unbiased draw that is the same on every platform.
+// Fisher–Yates with draws from SplitMix64 (the same on every platform).
 template <class T>
 void shuffle(std::vector<T>& v, std::uint64_t seed) {
   std::uint64_t state = seed;
+  const auto next = [&state] { return splitmix(state++); };
   for (std::size_t i = v.size(); i > 1; --i) {
-    const std::uint64_t range = i;
-    const std::uint64_t limit = ~0ULL - ~0ULL % range;
-    std::uint64_t r = splitmix(state++);
-    while (r >= limit) r = splitmix(state++);
-    std::swap(v[i - 1], v[std::size_t(r % range)]);
+    std::swap(v[i - 1], v[std::size_t(detail::draw_below(next, i))]);
   }
 }
 
@@ -557,25 +556,20 @@ Manifest read_manifest(const std::filesystem::path& path) {
 }
 
 std::string manifest_csv(const Manifest& m) {
-  const auto quote = [](const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
-    std::string q = "\"";
-    for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return q + "\"";
-  };
   std::ostringstream out;
   out << "kind,file,identity,mated,split,strength,d_over_r0,seed,source,face,same_image_as_"
          "gallery\n";
   for (const GalleryItem& g : m.gallery) {
-    out << "gallery," << quote(g.file) << "," << quote(g.identity) << ",," << g.split << ",,,,"
-        << quote(g.source.path) << "," << g.source.face << ",\n";
+    out << "gallery," << detail::csv_field(g.file) << "," << detail::csv_field(g.identity) << ",,"
+        << g.split << ",,,," << detail::csv_field(g.source.path) << "," << g.source.face << ",\n";
   }
   char d[32];
   for (const ProbeItem& p : m.probes) {
     std::snprintf(d, sizeof d, "%.6f", p.d_over_r0);
-    out << "probe," << quote(p.file) << "," << quote(p.identity) << "," << (p.mated ? 1 : 0) << ","
-        << p.split << "," << p.strength << "," << d << "," << p.seed << "," << quote(p.source.path)
-        << "," << p.source.face << "," << (p.same_image_as_gallery ? 1 : 0) << "\n";
+    out << "probe," << detail::csv_field(p.file) << "," << detail::csv_field(p.identity) << ","
+        << (p.mated ? 1 : 0) << "," << p.split << "," << p.strength << "," << d << "," << p.seed
+        << "," << detail::csv_field(p.source.path) << "," << p.source.face << ","
+        << (p.same_image_as_gallery ? 1 : 0) << "\n";
   }
   return out.str();
 }

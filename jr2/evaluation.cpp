@@ -10,6 +10,8 @@
 #include <sstream>
 #include <tuple>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
@@ -272,7 +274,7 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
        << " identities.\n";
   }
   md << "\nFace found: the share of sampled frames in which the probe's face was found by the "
-        "detector at one input size, at several merged by NMS, and with the track (a weaker "
+        "detector at one input size, at several pooled, and with the track (a weaker "
         "detection where the face was in the other frames). Only tracked frames are described.\n"
         "PSNR and SSIM: the sampled frames against the probe's clean clip (8-bit range), "
         "the mean over a probe's frames, then over the probes.\n"
@@ -286,18 +288,13 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
 std::string scores_csv(const Evaluation& e) {
   std::ostringstream out;
   out << "method,align,strength,probe,gallery_identity,score,mated\n";
-  const auto quote = [](const std::string& s) {
-    if (s.find_first_of(",\"\n") == std::string::npos) return s;
-    std::string q = "\"";
-    for (char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-    return q + "\"";
-  };
   char score[40];
   for (const ProbeRecord& r : e.records) {
     for (std::size_t g = 0; g < r.scores.size(); ++g) {
       std::snprintf(score, sizeof score, "%.9f", r.scores[g]);
-      out << r.method << "," << r.align << "," << r.strength << "," << quote(r.file) << ","
-          << quote(e.gallery[g]) << "," << score << "," << (int(g) == r.mate ? 1 : 0) << "\n";
+      out << r.method << "," << r.align << "," << r.strength << "," << detail::csv_field(r.file)
+          << "," << detail::csv_field(e.gallery[g]) << "," << score << ","
+          << (int(g) == r.mate ? 1 : 0) << "\n";
     }
   }
   return out.str();

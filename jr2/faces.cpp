@@ -33,24 +33,7 @@ std::vector<nets::FaceDetection> FaceAnalyzer::detect(Stream& stream, const Tens
     throw InvalidArgument("FaceAnalyzer::detect", "image has shape " + s.str(),
                           "pass one RGB image [1, 3, H, W] in 0..255");
   }
-  std::vector<nets::FaceDetection> all =
-      detector_->detect(stream, image, options.input_size, options.score_threshold);
-  if (options.extra_input_sizes.empty()) return all;
-  for (int size : options.extra_input_sizes) {
-    const auto more = detector_->detect(stream, image, size, options.score_threshold);
-    all.insert(all.end(), more.begin(), more.end());
-  }
-  std::vector<nets::FaceBox> boxes;
-  std::vector<double> scores;
-  for (const auto& d : all) {
-    boxes.push_back(d.box);
-    scores.push_back(d.score);
-  }
-  std::vector<nets::FaceDetection> merged;
-  for (std::size_t i : nets::non_max_suppression(boxes, scores, nets::kTinyFaceIouThreshold)) {
-    merged.push_back(all[i]);
-  }
-  return merged;
+  return detector_->detect(stream, image, options.input_size, options.score_threshold);
 }
 
 void FaceAnalyzer::locate(Stream& stream, const Tensor& image, const nets::FaceDetection& det,

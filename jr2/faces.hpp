@@ -20,11 +20,7 @@ enum class AlignMode : std::uint8_t {
 };
 
 struct FaceOptions {
-  int input_size = 416;  // detector input, a multiple of 32
-  // More detector input sizes (multiples of 32): the detector runs at each
-  // and the detections of all are merged by face-api's NMS (IoU 0.4), so a
-  // face too large or too small for one input size is found at another.
-  std::vector<int> extra_input_sizes;
+  int input_size = 416;          // detector input, a multiple of 32
   float score_threshold = 0.5f;  // detector score in (0, 1)
   bool descriptors = true;       // run the recognition net
   AlignMode align = AlignMode::face_api;
@@ -51,9 +47,9 @@ class FaceAnalyzer {
   // detect(), then describe() of each. Faces whose crop falls outside the
   // image are dropped.
   std::vector<Face> analyze(Stream& stream, const Tensor& image, const FaceOptions& options) const;
-  // The detections at options.input_size and options.extra_input_sizes,
-  // merged by NMS, highest score first. Throws InvalidArgument for an input
-  // size that is not a positive multiple of 32.
+  // The detections at options.input_size, highest score first (face-api's
+  // NMS). Throws InvalidArgument for an input size that is not a positive
+  // multiple of 32.
   std::vector<nets::FaceDetection> detect(Stream& stream, const Tensor& image,
                                           const FaceOptions& options) const;
   // Landmarks, crop or alignment and (options.descriptors) the descriptor of

@@ -7,6 +7,8 @@
 #include <random>
 #include <string>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
@@ -45,17 +47,6 @@ OperatingPoint operating_point(std::vector<double> negatives, double target) {
 }
 
 double best_score(const Search& s) { return *std::max_element(s.scores.begin(), s.scores.end()); }
-
-// Draws an index in [0, n) without modulo bias (the same sequence on every
-// platform, unlike std::uniform_int_distribution).
-std::size_t draw(std::mt19937_64& rng, std::size_t n) {
-  const std::uint64_t range = n;
-  const std::uint64_t limit =
-      std::numeric_limits<std::uint64_t>::max() - std::numeric_limits<std::uint64_t>::max() % range;
-  std::uint64_t r = rng();
-  while (r >= limit) r = rng();
-  return std::size_t(r % range);
-}
 
 // numpy's default (linear) quantile of sorted values.
 double quantile(const std::vector<double>& sorted, double q) {
@@ -334,9 +325,9 @@ Interval bootstrap_items(std::span<const int> unit, const IndexStatistic& statis
   for (int b = 0; b < options.resamples; ++b) {
     sample.clear();
     for (std::size_t g = 0; g < groups.size(); ++g) {
-      const std::vector<std::size_t>& members = *groups[draw(rng, groups.size())];
+      const std::vector<std::size_t>& members = *groups[detail::draw_below(rng, groups.size())];
       for (std::size_t m = 0; m < members.size(); ++m) {
-        sample.push_back(members[draw(rng, members.size())]);
+        sample.push_back(members[detail::draw_below(rng, members.size())]);
       }
     }
     const double v = statistic(sample);

@@ -1,6 +1,6 @@
 // The JR² recognition pipeline for one probe video (docs/eval.md):
 //
-//   temporal sampler → detect (several input sizes, merged by NMS) → the
+//   temporal sampler → detect (several input sizes, pooled) → the
 //   probe's face track → 68 landmarks → alignment (face-api's box crop
 //   and/or the 5-point similarity alignment) → descriptor → template.
 //
@@ -57,7 +57,7 @@ struct FrameOutcome {
 // device, so these are the stages' whole cost).
 struct StageSeconds {
   double frames = 0;       // fetching the sampled frames (decode, upload: the caller's frame())
-  double detect = 0;       // the detector at every input size, NMS, the track
+  double detect = 0;       // the detector at every input size, the track
   double landmarks = 0;    // 68 landmarks of the tracked faces
   double align_embed = 0;  // crop or alignment, and the descriptor
   double fusion = 0;       // the templates

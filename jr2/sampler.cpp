@@ -5,6 +5,8 @@
 #include <charconv>
 #include <random>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
@@ -87,11 +89,7 @@ std::vector<int> sample_frames(int frame_count, const FrameSampler& s, std::uint
     const int lo = int(std::int64_t(i) * frame_count / parts);
     const int hi = int(std::int64_t(i + 1) * frame_count / parts);
     const int starts = std::max(1, hi - lo - s.run + 1);
-    // An unbiased draw in [0, starts) that is the same on every platform.
-    const std::uint64_t limit = rng.max() - rng.max() % std::uint64_t(starts);
-    std::uint64_t r = rng();
-    while (r >= limit) r = rng();
-    const int start = lo + int(r % std::uint64_t(starts));
+    const int start = lo + int(detail::draw_below(rng, std::uint64_t(starts)));
     for (int f = start; f < std::min(hi, start + s.run); ++f) frames.push_back(f);
   }
   return frames;
