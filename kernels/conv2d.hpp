@@ -6,9 +6,8 @@
 //   weight [Cout, Cin/groups, KH, KW]     (OIHW, as PyTorch). TF.js/Keras HWIO
 //          weights must be repacked to OIHW by the caller once at load time.
 //          The blocked and pointwise variants read weights repacked to
-//          [ceil(Cout/8)][Cin][KH][KW][8]: conv2d() packs them on every call
-//          unless it is given the packed form from conv2d_pack_weight()
-//          (pack once per weight, again after the weight changed).
+//          [ceil(Cout/8)][Cin][KH][KW][8]: conv2d() packs them on every call;
+//          a Conv2dPlan packs them once (again after the weight changed).
 //   bias   [Cout] (optional: nullptr)
 //   y      [N, Cout, Hout, Wout], Hout = (H + pad_top + pad_bottom - ((KH-1)·dy + 1)) / sy + 1.
 //
@@ -29,15 +28,16 @@
 // output y: ReLU/LeakyReLU gradients depend only on sign(y)) and passes the
 // result as dy.
 //
-// Variants (chosen in one place, conv2d_select(); all tested):
+// Variants (chosen in one place, when a Conv2dPlan is made; all tested):
 //   direct     any parameters; one output per invocation (slow fallback).
 //   blocked    groups == 1, KH, KW <= 7, stride_x, dilation_x <= 4: a tile of
 //              4 or 8 output channels × 1..25 rows × up to 20 pixels per
 //              invocation, chosen per shape (a row of up to 20 pixels is one
-//              block, so small planes waste no lanes); the input is
-//              zero-padded into a temporary (one cheap pass) and read as vec4
-//              texels, weights packed to [Cout/8][Cin][KH][KW][8] (per call,
-//              or once with conv2d_pack_weight) and read as vec4 texels; KH/KW/stride_x/
+//              block, so small planes waste no lanes); the input is read
+//              zero-padded (Conv2dPlan::input_layout: its producer writes it
+//              so, else one cheap padding pass) as vec4 texels, weights packed
+//              to [Cout/8][Cin][KH][KW][8] (per call, or once by a plan) and
+//              read as vec4 texels; KH/KW/stride_x/
 //              dilation_x and the tile are specialization constants. 3×3 64→64
 //              128² on lavapipe (shared 2-core machine): 26–32 GFLOP/s; the
 //              face ResNet's 35²..2² planes: ~40.
@@ -50,20 +50,23 @@
 //              shape; padded input as for blocked (its own tile's geometry).
 // Backward-data reuses the blocked kernel (flipped, transposed weights) for
 // stride 1, groups 1 convolutions, and a direct gather otherwise.
-// Temporaries (padded input, packed weights) come from Tensor::empty and are
-// kept alive by the Stream.
+// The layout choices (variant, tile, padded input geometry) come from the
+// device's DeviceTraits. Temporaries (padded input, packed weights) come from
+// Tensor::empty and are kept alive by the Stream.
 #pragma once
 
+#include <vkjr2/kernels/planes.hpp>
 #include <vkjr2/runtime/stream.hpp>
 
 #include <cstdint>
+#include <string>
 
 namespace vkjr2::kernels {
 
 enum class Activation : std::uint8_t { none, relu, leaky_relu };
 
 enum class Conv2dAlgo : std::uint8_t {
-  auto_select,  // conv2d_select() picks
+  auto_select,  // the plan picks
   direct,
   blocked,
   pointwise,
@@ -73,6 +76,7 @@ const char* conv2d_algo_name(Conv2dAlgo algo) noexcept;
 
 struct Padding2d {
   int top = 0, bottom = 0, left = 0, right = 0;
+  bool operator==(const Padding2d&) const = default;
 };
 
 struct Conv2dParams {
@@ -87,6 +91,7 @@ struct Conv2dParams {
   // Forces a variant (tests, benchmarks); auto_select in normal use. A forced
   // variant that cannot run these parameters throws InvalidArgument.
   Conv2dAlgo algo = Conv2dAlgo::auto_select;
+  bool operator==(const Conv2dParams&) const = default;
 };
 
 // TF "SAME" padding for one axis: total = max((ceil(in/s) − 1)·s + (k−1)·d + 1 − in, 0),
@@ -98,81 +103,75 @@ Padding2d same_padding(std::int64_t in_h, std::int64_t in_w, int kh, int kw, int
 // throws InvalidArgument for inconsistent shapes or parameters.
 Shape conv2d_output_shape(const Shape& x, const Shape& weight, const Conv2dParams& p);
 
-// The variant conv2d() runs for these shapes on a device (p.algo when not
-// auto_select, after checking it can run them; else InvalidArgument).
-Conv2dAlgo conv2d_select(const Device& device, const Shape& x, const Shape& weight,
-                         const Conv2dParams& p);
+// One convolution's choices for one input shape on one device, made once:
+// the variant (p.algo when not auto_select, after checking it can run these
+// shapes; else InvalidArgument), its tile and so the layout it reads x in,
+// and, once pack() ran, the weight in the layout the variant reads.
+class Conv2dPlan {
+ public:
+  Conv2dPlan() = default;  // no plan (defined() is false)
+  // For x [N, Cin, H, W], weight [Cout, Cin/groups, KH, KW] and p; throws
+  // InvalidArgument for inconsistent shapes or parameters.
+  Conv2dPlan(const Device& device, const Shape& x, const Shape& weight, const Conv2dParams& p);
 
-// An OIHW weight in the layout the blocked and pointwise variants read
-// ([ceil(Cout/8)][Cin/groups][KH][KW][8], zero for the channels past Cout).
-// It is a copy: after the weight changes (an optimizer step, a load) pack it
-// again, or conv2d() computes with the old values.
-struct Conv2dPackedWeight {
-  Tensor packed;       // undefined: not packed
-  Shape weight_shape;  // the OIHW shape it was packed from
-  bool defined() const noexcept { return packed.defined(); }
+  bool defined() const noexcept { return device_ != nullptr; }
+  // Whether the plan was made for `device` (any handle to the same one).
+  bool made_for(const Device& device) const noexcept {
+    return device_ != nullptr && device.shared_core().get() == device_;
+  }
+  Conv2dAlgo algo() const noexcept { return algo_; }
+  const Shape& input_shape() const noexcept { return x_; }
+  const Shape& weight_shape() const noexcept { return weight_; }
+  const Shape& output_shape() const noexcept { return y_; }
+  const Conv2dParams& params() const noexcept { return p_; }
+
+  // The layout run() reads x in with no padding pass: padded planes for the
+  // blocked and depthwise variants, else plain. A producer that writes x
+  // into Planes::make(stream, x, input_layout()) saves the padding pass.
+  const PlaneLayout& input_layout() const noexcept { return input_layout_; }
+  // Whether run() writes y into padded planes (blocked, depthwise,
+  // pointwise; the others write plain y only).
+  bool writes_padded() const noexcept;
+  // Empty when run() takes r as the residual, else why not. Plain residuals
+  // [N, 1..Cout, Hout, Wout] always; padded ones: the pointwise variant in
+  // any layout, the blocked one in input_layout() when y has x's size (a
+  // stride-1 'same' convolution whose input is also its shortcut).
+  std::string residual_misfit(const Planes& r) const;
+
+  // Whether the variant reads a packed weight (blocked, pointwise).
+  bool reads_packed_weight() const noexcept;
+  // Packs weight (weight_shape()) for the variant, recorded on `stream`; the
+  // plan keeps it and run() reads it from then on. It is a copy: after the
+  // weight changes (an optimizer step, a load), pack again. Nothing to do
+  // for the variants that read the weight as it is.
+  void pack(Stream& stream, const Tensor& weight);
+  bool packed() const noexcept { return packed_.defined(); }
+
+  // y = act(conv(x, weight) + bias + residual). x: plain, or padded in
+  // input_layout(); y: plain, or padded planes when writes_padded() (any
+  // layout holding the output); bias may be nullptr; residual: nullptr or
+  // one residual_misfit() accepts. The weight is read packed when pack() ran
+  // (weight must then be the tensor it packed, unchanged), else packed here.
+  void run(Stream& stream, const Planes& x, const Tensor& weight, const Tensor* bias,
+           const Planes& y, const Planes* residual = nullptr) const;
+
+ private:
+  const void* device_ = nullptr;  // the device's core (identity only)
+  Shape x_, weight_, y_;
+  Conv2dParams p_;
+  Conv2dAlgo algo_ = Conv2dAlgo::auto_select;
+  PlaneLayout input_layout_;
+  Tensor packed_;
 };
-// Records the packing of weight [Cout, Cin/groups, KH, KW] on `stream`.
-Conv2dPackedWeight conv2d_pack_weight(Stream& stream, const Tensor& weight);
-// Whether `algo` reads packed weights (blocked, pointwise).
-bool conv2d_uses_packed_weight(Conv2dAlgo algo) noexcept;
 
-// y = act(conv(x, weight) + bias + residual). bias may be nullptr. packed:
-// weight packed by conv2d_pack_weight (used when the selected variant reads
-// packed weights; its shape must be weight's), or nullptr to pack on this
-// call. residual: [N, Cr, Hout, Wout] with 1 <= Cr <= Cout, a tensor other
-// than y, or nullptr (every variant takes it: a residual block's add and
-// ReLU in the conv's epilogue). Its gradient is the pre-activation dy
+// y = act(conv(x, weight) + bias + residual) with a plan made for this call
+// (weights packed per call when the variant reads them packed). bias may be
+// nullptr. residual: [N, Cr, Hout, Wout] with 1 <= Cr <= Cout, a tensor
+// other than y, or nullptr (every variant takes it: a residual block's add
+// and ReLU in the conv's epilogue). Its gradient is the pre-activation dy
 // (channels < Cr).
 void conv2d(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-            const Tensor& y, const Conv2dParams& p, const Conv2dPackedWeight* packed = nullptr,
-            const Tensor* residual = nullptr);
-
-// The zero-padded copy of an input that the blocked and depthwise variants
-// read: planes of hp × wp (wp % 4 == 0) with x at (top, left), zeros around.
-// A producer that writes its output straight into it (conv2d_into_padded)
-// saves the consumer its padding pass (conv2d_from_padded reads it).
-struct Conv2dPadded {
-  Tensor data;  // [N·C·hp·wp]
-  Shape shape;  // x's [N, C, H, W]
-  std::uint32_t hp = 0, wp = 0;
-  std::int32_t top = 0, left = 0;
-  bool defined() const noexcept { return data.defined(); }
-};
-// For conv2d(x of shape x, weight, p): its padded input, zero-filled on
-// `stream`, when the selected variant is blocked or depthwise; else undefined
-// (no data).
-Conv2dPadded conv2d_padded_input(Stream& stream, const Shape& x, const Shape& weight,
-                                 const Conv2dParams& p);
-// conv2d with y written into the interior of y (conv2d_padded_input of y's
-// consumer; y.shape is conv2d's output shape). Blocked, depthwise and
-// pointwise variants.
-void conv2d_into_padded(Stream& stream, const Tensor& x, const Tensor& weight, const Tensor* bias,
-                        const Conv2dPadded& y, const Conv2dParams& p,
-                        const Conv2dPackedWeight* packed = nullptr,
-                        const Tensor* residual = nullptr);
-// conv2d of the input whose padded copy x is (conv2d_padded_input for these
-// shapes and p, filled): no padding pass.
-void conv2d_from_padded(Stream& stream, const Conv2dPadded& x, const Tensor& weight,
-                        const Tensor* bias, const Tensor& y, const Conv2dParams& p,
-                        const Conv2dPackedWeight* packed = nullptr,
-                        const Tensor* residual = nullptr);
-
-// The general form: x, y and the residual each plain (the tensor) or padded
-// (io: x read from its padded copy (blocked, depthwise), y written into a
-// padded tensor's interior (blocked, depthwise, pointwise), the residual read
-// from a padded tensor: blocked, one in x's padded layout, for a stride-1
-// 'same' convolution whose input is also its shortcut; pointwise, any padded
-// tensor holding [N, Cr, H, W], such as the consumer's padded input of the
-// previous sum in a chain of residual adds).
-struct Conv2dPaddedIo {
-  const Conv2dPadded* x = nullptr;
-  const Conv2dPadded* y = nullptr;
-  const Conv2dPadded* residual = nullptr;
-};
-void conv2d_padded(Stream& stream, const Tensor* x, const Tensor& weight, const Tensor* bias,
-                   const Tensor* y, const Conv2dParams& p, const Conv2dPaddedIo& io,
-                   const Conv2dPackedWeight* packed = nullptr, const Tensor* residual = nullptr);
+            const Tensor& y, const Conv2dParams& p, const Tensor* residual = nullptr);
 
 // dx = ∂L/∂x given dy = ∂L/∂y (pre-activation gradient; see above). dx has x's
 // shape [N, Cin, H, W] and is overwritten. p.algo: auto_select or direct (forces

@@ -158,23 +158,23 @@ void max_pool2d(Stream& stream, const Tensor& x, const Pool2d& p, const Tensor& 
   run_max_pool(stream, x, p, y, indices, make_push(x.shape(), ys, p, 0, ys), ys);
 }
 
-void max_pool2d_into_padded(Stream& stream, const Tensor& x, const Pool2d& p,
-                            const Conv2dPadded& y) {
+void max_pool2d_into_padded(Stream& stream, const Tensor& x, const Pool2d& p, const Planes& y) {
   const char* op = "max_pool2d_into_padded";
   require_f32_rank(x, 4, op, "x");
   const Shape ys = pool_output_shape(x.shape(), p);
-  if (!y.defined() || !(y.shape == ys) || y.top < 0 || y.left < 0 ||
-      std::int64_t(y.hp) < y.top + ys[2] || std::int64_t(y.wp) < y.left + ys[3] ||
-      y.data.numel() != ys[0] * ys[1] * std::int64_t(y.hp) * std::int64_t(y.wp)) {
+  const PlaneLayout g = y.geometry();
+  if (!y.defined() || !(y.shape == ys) || g.top < 0 || g.left < 0 ||
+      std::int64_t(g.hp) < g.top + ys[2] || std::int64_t(g.wp) < g.left + ys[3] ||
+      y.data.numel() != ys[0] * ys[1] * std::int64_t(g.hp) * std::int64_t(g.wp)) {
     throw InvalidArgument(op,
                           "y must be a padded tensor of the pool's output shape " + ys.str() +
                               (y.defined() ? ", got one of " + y.shape.str() : ", got none"),
-                          "make it with conv2d_padded_input for the pool's output shape");
+                          "make it with Planes::make for the pool's output shape");
   }
   PoolPush push = make_push(x.shape(), ys, p, 0, ys);
-  push.y_plane = y.hp * y.wp;
-  push.y_row = y.wp;
-  push.y_offset = std::uint32_t(y.top) * y.wp + std::uint32_t(y.left);
+  push.y_plane = g.hp * g.wp;
+  push.y_row = g.wp;
+  push.y_offset = std::uint32_t(g.top) * g.wp + std::uint32_t(g.left);
   run_max_pool(stream, x, p, y.data, Tensor(), push, ys);
 }
 

@@ -2,7 +2,7 @@
 // average and global average, forward and backward.
 #pragma once
 
-#include <vkjr2/kernels/conv2d.hpp>
+#include <vkjr2/kernels/planes.hpp>
 #include <vkjr2/runtime/stream.hpp>
 
 #include <cstdint>
@@ -40,10 +40,10 @@ Shape pool_output_shape(const Shape& x, const Pool2d& p);
 void max_pool2d(Stream& stream, const Tensor& x, const Pool2d& p, const Tensor& y,
                 const Tensor& indices);
 // max_pool2d with y written into the interior of a conv's zero-padded input
-// (conv2d_padded_input for the pool's output shape; no indices), so that conv
+// (padded planes in the layout of the conv that reads the pool's output:
+// Conv2dPlan::input_layout; no indices), so that conv
 // needs no padding pass.
-void max_pool2d_into_padded(Stream& stream, const Tensor& x, const Pool2d& p,
-                            const Conv2dPadded& y);
+void max_pool2d_into_padded(Stream& stream, const Tensor& x, const Pool2d& p, const Planes& y);
 // dx[n,c,h,w] = Σ dy over the windows whose saved index is (h, w). Written as
 // a gather over the windows covering each input pixel: deterministic, dx fully
 // overwritten. dx: [N, C, H, W] (the input's shape).

@@ -121,8 +121,8 @@ void resize_zero_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
 }
 
 void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& canvas,
-                        ResizeMode mode, const Tensor& scale, const Tensor& shift,
-                        const Conv2dPadded& y, const Tensor* nonfinite) {
+                        ResizeMode mode, const Tensor& scale, const Tensor& shift, const Planes& y,
+                        const Tensor* nonfinite) {
   static const KernelDef k{"resize_into_padded",
                            {BindingKind::texel, BindingKind::texel, BindingKind::texel,
                             BindingKind::storage, BindingKind::storage},
@@ -132,9 +132,10 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
   require_canvas(op, x, canvas);
   if (!y.defined() || y.shape.rank() != 4) {
     throw InvalidArgument(op, "y is not a padded tensor",
-                          "pass conv2d_padded_input of the network input's shape");
+                          "pass planes of the network input's shape (Planes::make)");
   }
   const Shape& ys = y.shape;
+  const PlaneLayout yg = y.geometry();
   const std::int64_t planes = ys[0] * ys[1], oh = ys[2], ow = ys[3];
   if (x.shape()[0] != ys[0] || x.shape()[1] != ys[1]) {
     throw InvalidArgument(op, "x " + x.shape().str() + " and y " + ys.str() + " differ in N or C");
@@ -145,13 +146,14 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
                               " is too large (2^31 elements, 65535 images at most)",
                           "split the batch");
   }
-  if (oh < 1 || ow < 1 || y.top < 0 || y.left < 0 || y.top + oh > y.hp || y.left + ow > y.wp ||
-      planes * y.hp * y.wp > y.data.numel()) {
+  if (oh < 1 || ow < 1 || yg.top < 0 || yg.left < 0 || yg.top + oh > yg.hp ||
+      yg.left + ow > yg.wp || planes * yg.hp * yg.wp > y.data.numel()) {
     throw InvalidArgument(op,
-                          "padded planes " + std::to_string(y.hp) + "×" + std::to_string(y.wp) +
+                          "padded planes " + std::to_string(yg.hp) + "×" + std::to_string(yg.wp) +
                               " (data " + y.data.shape().str() + ") do not hold y " + ys.str() +
-                              " at (" + std::to_string(y.top) + ", " + std::to_string(y.left) + ")",
-                          "pass conv2d_padded_input of y's shape");
+                              " at (" + std::to_string(yg.top) + ", " + std::to_string(yg.left) +
+                              ")",
+                          "make y with Planes::make for y's shape");
   }
   if (require_f32(scale, op, "scale") != std::uint32_t(ys[1]) ||
       require_f32(shift, op, "shift") != std::uint32_t(ys[1])) {
@@ -179,11 +181,11 @@ void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
                             static_cast<std::int32_t>(x.shape()[3]),
                             static_cast<std::int32_t>(canvas.top),
                             static_cast<std::int32_t>(canvas.left),
-                            y.hp,
-                            y.wp,
-                            static_cast<std::uint32_t>(y.top),
-                            static_cast<std::uint32_t>(y.left)};
-  const bool store4 = ow % 4 == 0 && y.wp % 4 == 0 && y.left % 4 == 0;
+                            yg.hp,
+                            yg.wp,
+                            static_cast<std::uint32_t>(yg.top),
+                            static_cast<std::uint32_t>(yg.left)};
+  const bool store4 = ow % 4 == 0 && yg.wp % 4 == 0 && yg.left % 4 == 0;
   const std::uint64_t items = std::uint64_t(oh) * blocks_x;
   const std::uint32_t lanes = group_lanes(items, stream.device().traits().min_workgroups);
   Groups g = groups_1d(div_up(items, lanes), stream.device().info());

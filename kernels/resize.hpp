@@ -2,7 +2,7 @@
 // align-corners conventions, and nearest; forward and backward.
 #pragma once
 
-#include <vkjr2/kernels/conv2d.hpp>
+#include <vkjr2/kernels/planes.hpp>
 #include <vkjr2/runtime/stream.hpp>
 
 #include <cstdint>
@@ -42,13 +42,13 @@ void resize_zero_padded(Stream& stream, const Tensor& x, const ResizeCanvas& can
 // A network's input in one pass: y = resize_zero_padded(x, canvas, mode)
 // · scale[c] + shift[c] (per-channel normalization, fma as channel_affine
 // computes it), written into the interior of a conv's zero-padded input
-// (conv2d_padded_input for y.shape = [N, C, OH, OW]; its border is left as
-// it is). nonfinite: nullptr, or a 1-element tensor set to 1 when any output
-// is NaN or infinite and left as it is otherwise (fill it with 0 first).
-// Forward only.
+// (padded planes of y.shape = [N, C, OH, OW]: Planes::make with the first
+// conv's Conv2dPlan::input_layout, or plain ones; a border is left as it is). nonfinite: nullptr,
+// or a 1-element tensor set to 1 when any output is NaN or infinite and left as it is otherwise
+// (fill it with 0 first). Forward only.
 void resize_into_padded(Stream& stream, const Tensor& x, const ResizeCanvas& canvas,
-                        ResizeMode mode, const Tensor& scale, const Tensor& shift,
-                        const Conv2dPadded& y, const Tensor* nonfinite = nullptr);
+                        ResizeMode mode, const Tensor& scale, const Tensor& shift, const Planes& y,
+                        const Tensor* nonfinite = nullptr);
 // dx = the adjoint of resize applied to dy, written as a gather over the
 // output pixels each input pixel contributes to (deterministic, dx fully
 // overwritten). dy: [N, C, OH, OW], dx: [N, C, H, W].

@@ -14,6 +14,28 @@ Var::Var(Tensor value, bool requires_grad) : state_(std::make_shared<detail::Var
   state_->requires_grad = requires_grad;
 }
 
+Var::Var(const kernels::Planes& planes) : state_(std::make_shared<detail::VarState>()) {
+  if (!planes.defined()) throw InvalidArgument("Var", "the planes are undefined", "pass planes");
+  state_->value = planes.data;
+  if (planes.padded()) {
+    state_->padded_shape = planes.shape;
+    state_->layout = planes.layout;
+  }
+}
+
+bool Var::padded() const noexcept { return state_ && !state_->layout.plain(); }
+
+kernels::Planes Var::planes() const {
+  if (!state_) throw InvalidArgument("Var", "the Var is undefined", "assign it from an op first");
+  if (state_->layout.plain()) return kernels::Planes::of(state_->value);
+  return kernels::Planes{state_->value, state_->padded_shape, state_->layout};
+}
+
+const Shape& Var::shape() const {
+  if (!state_) throw InvalidArgument("Var", "the Var is undefined", "assign it from an op first");
+  return state_->layout.plain() ? state_->value.shape() : state_->padded_shape;
+}
+
 bool Var::requires_grad() const noexcept { return state_ && state_->requires_grad; }
 bool Var::has_grad() const noexcept { return state_ && state_->grad.defined(); }
 std::uint64_t Var::version() const noexcept { return state_ ? state_->version : 0; }
@@ -23,6 +45,12 @@ void Var::mark_modified() const noexcept {
 
 const Tensor& Var::value() const {
   if (!state_) throw InvalidArgument("Var", "the Var is undefined", "assign it from an op first");
+  if (!state_->layout.plain()) {
+    throw InvalidArgument("Var",
+                          "the Var holds padded planes " + state_->layout.str() + " of " +
+                              state_->padded_shape.str() + ", not a plain tensor",
+                          "read it with planes(), or have its producer write it plain");
+  }
   return state_->value;
 }
 
@@ -38,6 +66,10 @@ void Var::zero_grad() const {
 void Var::set_value(Tensor value) const {
   if (!state_)
     throw InvalidArgument("Var::set_value", "the Var is undefined", "construct it first");
+  if (padded()) {
+    throw InvalidArgument("Var::set_value", "the Var holds padded planes",
+                          "set the value of plain Vars (parameters) only");
+  }
   if (!(value.shape() == state_->value.shape())) {
     throw InvalidArgument("Var::set_value",
                           "new value has shape " + value.shape().str() + ", the Var has " +
@@ -50,6 +82,10 @@ void Var::set_value(Tensor value) const {
 }
 
 void Var::set_requires_grad(bool on) const {
+  if (on && padded()) {
+    throw InvalidArgument("Var::set_requires_grad", "a padded Var takes no gradient",
+                          "have its producer write it plain");
+  }
   if (state_) state_->requires_grad = on;
 }
 

@@ -12,6 +12,7 @@
 // tape clears; intermediate Vars are freed with the tape.
 #pragma once
 
+#include <vkjr2/kernels/planes.hpp>
 #include <vkjr2/runtime/stream.hpp>
 
 #include <cstdint>
@@ -32,11 +33,20 @@ class Var {
   // Wraps a tensor; requires_grad marks a leaf whose gradient is wanted
   // (a parameter, or an input image for pixel gradients).
   explicit Var(Tensor value, bool requires_grad = false);
+  // Wraps an activation as the kernels store it (kernels/planes.hpp): plain
+  // planes are the tensor; padded ones (an inference activation written
+  // straight into the zero-bordered input of the convolution that reads it)
+  // are read through planes() only, and never need a gradient.
+  explicit Var(const kernels::Planes& planes);
 
   bool defined() const noexcept { return state_ != nullptr; }
+  // The tensor; InvalidArgument for a padded Var (see planes()).
   const Tensor& value() const;
-  const Shape& shape() const { return value().shape(); }
-  std::int64_t numel() const { return value().numel(); }
+  // The value as planes: plain (value()) or padded.
+  kernels::Planes planes() const;
+  bool padded() const noexcept;
+  const Shape& shape() const;
+  std::int64_t numel() const { return shape().numel(); }
   bool requires_grad() const noexcept;
   // The accumulated gradient; undefined when no gradient reached this Var.
   const Tensor& grad() const;

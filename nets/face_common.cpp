@@ -147,14 +147,16 @@ kernels::ResizeCanvas square_canvas(std::int64_t h, std::int64_t w) {
   return {side, side, h > w ? 0 : before, h > w ? before : 0};
 }
 
-Tensor resize_normalized_into(Stream& stream, const Tensor& image,
-                              const kernels::ResizeCanvas& canvas, const Var& scale,
-                              const Var& shift, const kernels::Conv2dPadded& x0p) {
-  Tensor flag = Tensor::empty(image.device(), Shape{1});
-  stream.fill(flag, 0.f);
+Var resize_normalized(Tape& t, const Tensor& image, const kernels::ResizeCanvas& canvas,
+                      const Shape& shape, const Var& scale, const Var& shift,
+                      const kernels::PlaneLayout& layout, Tensor& nonfinite) {
+  Stream& stream = t.stream();
+  nonfinite = Tensor::empty(image.device(), Shape{1});
+  stream.fill(nonfinite, 0.f);
+  const kernels::Planes x = kernels::Planes::make(stream, shape, layout);
   kernels::resize_into_padded(stream, image, canvas, kernels::ResizeMode::bilinear_legacy,
-                              scale.value(), shift.value(), x0p, &flag);
-  return flag;
+                              scale.value(), shift.value(), x, &nonfinite);
+  return Var(x);
 }
 
 Var pad_to_square_and_resize(Tape& t, const Var& image, std::int64_t size) {

@@ -77,14 +77,15 @@ inline std::int64_t js_round_half(std::int64_t diff) { return (diff + 1) / 2; }
 // after), for kernels::resize_zero_padded and resize_into_padded.
 kernels::ResizeCanvas square_canvas(std::int64_t h, std::int64_t w);
 
-// A network's input in one pass: the image on `canvas`, resized with
-// face-api's legacy bilinear to x0p's shape, normalized (·scale + shift per
-// channel) and written into x0p, a conv's zero-padded input
-// (kernels::resize_into_padded). Returns the non-finite flag: after the
-// stream runs, 1 when any input value is NaN or infinite, else 0.
-Tensor resize_normalized_into(Stream& stream, const Tensor& image,
-                              const kernels::ResizeCanvas& canvas, const Var& scale,
-                              const Var& shift, const kernels::Conv2dPadded& x0p);
+// A network's input in one pass (kernels::resize_into_padded): the image on
+// `canvas`, resized with face-api's legacy bilinear to `shape` [N, C, S, S],
+// normalized (·scale + shift per channel), written in `layout` (the first
+// conv's ConvPlans::input_layout: no padding pass). nonfinite: set to a
+// flag that reads, after the stream runs, 1 when any input value is NaN or
+// infinite, else 0. Inference only (the result needs no gradient).
+Var resize_normalized(Tape& t, const Tensor& image, const kernels::ResizeCanvas& canvas,
+                      const Shape& shape, const Var& scale, const Var& shift,
+                      const kernels::PlaneLayout& layout, Tensor& nonfinite);
 
 // face-api's padToSquare(image, isCenterImage = true) (zeros, the larger half
 // after the image), then, unless the side already is `size`, resizeBilinear

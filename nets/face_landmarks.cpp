@@ -98,30 +98,29 @@ class FaceLandmark68Net::DenseBlock : public Module {
     }
   }
 
-  Var forward(Tape& t, const Var& x) const {
-    Var out1;
-    if (conv0_ != nullptr) {
-      out1 = conv0_->forward(t, x, k::Activation::relu);
-    } else {  // tf.conv2d(x, filters, [2, 2], 'same') + bias, relu
-      out1 = conv2d(t, x, first_filters_, first_bias_, first_params(x.shape()), &first_packed_);
-    }
+  // relu(sum) of the block for x; out: the layout of the output's consumer.
+  // The running sum goes through the pointwise convs' epilogues (each adds
+  // the sum it read as its residual), and each depthwise conv applies the
+  // ReLU of the sum as it reads it; in inference each sum is written straight
+  // into the next conv's padded input (no padding, add or ReLU pass).
+  Var forward(Tape& t, const Var& x, const k::PlaneLayout& out) const {
+    const Shape o = output_shape(x.shape());
+    const k::PlaneLayout to_conv1 = convs_[0]->input_layout(t, o);
     // face-api sums out1 + (out2 + (out3 + out4)); the running sum below
     // associates left to right instead (differences at float rounding level).
-    Var sum = out1;
+    Var sum = conv0_ != nullptr
+                  ? conv0_->forward(t, x, k::Activation::relu, 0.f, {false, Var(), to_conv1})
+                  : conv2d(t, x, first_filters_, first_bias_, first_params(x.shape()),
+                           &first_plans_, Var(), to_conv1);
     for (std::size_t i = 0; i < convs_.size(); ++i) {
-      const Var in = i == 0 ? out1 : relu(t, sum);
-      sum = add(t, sum, convs_[i]->forward(t, in, k::Activation::none));
+      const bool last = i + 1 == convs_.size();
+      SeparableExtras e;
+      e.relu_input = i > 0;
+      e.residual = sum;
+      e.out = last ? out : convs_[i + 1]->input_layout(t, o);
+      sum = convs_[i]->forward(t, sum, last ? k::Activation::relu : k::Activation::none, 0.f, e);
     }
-    return relu(t, sum);
-  }
-
-  void pack(Stream& s) const {
-    if (conv0_ != nullptr) {
-      conv0_->pack(s);
-    } else {
-      first_packed_.get(s, first_filters_);
-    }
-    for (const SeparableConv3x3* c : convs_) c->pack(s);
+    return sum;
   }
 
   // The block's output shape for x of shape x: conv0's (stride 2, 'same').
@@ -130,55 +129,11 @@ class FaceLandmark68Net::DenseBlock : public Module {
                              : k::conv2d_output_shape(x, first_filters_.shape(), first_params(x));
   }
 
-  // Whether forward_inference can run this block for x of shape x (no
-  // parameter needs a gradient, every conv runs a variant with padded io).
-  bool infers(const Tape& t, const Shape& x) const {
-    const Shape o = output_shape(x);
-    const bool first = conv0_ != nullptr
-                           ? conv0_->infers(t, x)
-                           : !t.needs_grad({&first_filters_, &first_bias_}) &&
-                                 k::conv2d_select(t.device(), x, first_filters_.shape(),
-                                                  first_params(x)) == k::Conv2dAlgo::blocked;
-    return first && std::all_of(convs_.begin(), convs_.end(),
-                                [&](const SeparableConv3x3* c) { return c->infers(t, o); });
-  }
-
-  // conv0's zero-padded input for x of shape x, for the previous block to
-  // write its output into (the first block: for the normalized image; see
-  // FaceLandmark68Net::relative_landmarks).
-  k::Conv2dPadded padded_input(Tape& t, const Shape& x) const {
+  // The layout forward() reads x of shape x in with no padding pass.
+  k::PlaneLayout input_layout(const Tape& t, const Shape& x) const {
     return conv0_ != nullptr
-               ? conv0_->padded_input(t, x)
-               : k::conv2d_padded_input(t.stream(), x, first_filters_.shape(), first_params(x));
-  }
-
-  // Inference (infers()): the block with the running sum kept in the
-  // separable convs' padded input layout, two tensors used in turn. Each
-  // pointwise conv adds the sum in its epilogue and writes the new one
-  // straight into the next depthwise conv's padded input, which applies the
-  // ReLU as it reads it; the last one applies the block's ReLU itself. So no
-  // padding, add or ReLU pass runs. x: plain (the first block only) or xp,
-  // its padded copy (already ReLU'd); the result goes into `into` (the next
-  // block's padded input; then undefined) or is returned.
-  Var forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& xp,
-                        const k::Conv2dPadded* into) const {
-    const Shape in = xp.defined() ? xp.shape : x.shape();
-    const Shape o = output_shape(in);
-    const std::array<k::Conv2dPadded, 2> sums = {convs_[0]->padded_input(t, o),
-                                                 convs_[0]->padded_input(t, o)};
-    if (conv0_ != nullptr) {
-      conv0_->run_padded(t, xp, false, k::Activation::relu, 0.f, nullptr, &sums[0]);
-    } else {
-      k::Conv2dPaddedIo io;
-      io.y = &sums[0];
-      if (xp.defined()) io.x = &xp;
-      k::conv2d_padded(t.stream(), xp.defined() ? nullptr : &x.value(), first_filters_.value(),
-                       &first_bias_.value(), nullptr, first_params(in), io,
-                       &first_packed_.get(t.stream(), first_filters_));
-    }
-    convs_[0]->run_padded(t, sums[0], false, k::Activation::none, 0.f, &sums[0], &sums[1]);
-    convs_[1]->run_padded(t, sums[1], true, k::Activation::none, 0.f, &sums[1], &sums[0]);
-    return convs_[2]->run_padded(t, sums[0], true, k::Activation::relu, 0.f, &sums[0], into);
+               ? conv0_->input_layout(t, x)
+               : first_plans_.input_layout(t, x, first_filters_, first_bias_, first_params(x));
   }
 
  private:
@@ -191,7 +146,7 @@ class FaceLandmark68Net::DenseBlock : public Module {
   }
 
   Var first_filters_, first_bias_;
-  ConvWeightCache first_packed_;
+  ConvPlans first_plans_;
   const SeparableConv3x3* conv0_ = nullptr;
   std::array<const SeparableConv3x3*, 3> convs_{};
 };
@@ -219,11 +174,6 @@ FaceLandmark68Net::FaceLandmark68Net(const Device& device, const TfjsWeights& we
   const InputAffine input = mean_rgb_affine(device, kMeanRgb);
   input_scale_ = input.scale_var;
   input_shift_ = input.shift_var;
-
-  // Conv weights packed once at load (repacked only if a weight changes).
-  Stream stream(device);
-  for (const DenseBlock* block : blocks_) block->pack(stream);
-  stream.run();
 }
 
 FaceLandmark68Net::~FaceLandmark68Net() = default;
@@ -238,47 +188,22 @@ Var FaceLandmark68Net::forward(Tape& t, const Var& x112) const {
         "x112 has shape " + shape_of(x112) + ", expected [N, 3, 112, 112] (RGB 0..255)",
         "pad and resize face crops with to_landmark_input first");
   }
-  Var x = channel_affine(t, x112, input_scale_, input_shift_);
-  if (infers(t, x112.shape(), t.needs_grad({&x112}))) {
-    return forward_inference(t, x, k::Conv2dPadded{});
-  }
-  for (const DenseBlock* block : blocks_) x = block->forward(t, x);  // 112 → 56 → 28 → 14 → 7
-  return head(t, x);
+  return body(t, channel_affine(t, x112, input_scale_, input_shift_));
 }
 
-bool FaceLandmark68Net::infers(const Tape& t, const Shape& x112, bool input_needs_grad) const {
-  bool infers = !input_needs_grad;
-  Shape xs = x112;
-  for (const DenseBlock* block : blocks_) {
-    infers = infers && block->infers(t, xs);
-    xs = block->output_shape(xs);
-  }
-  return infers;
-}
-
-// Inference (infers()): each block writes its output straight into the next
-// one's padded input (DenseBlock::forward_inference). The normalized input:
-// x, or its padded copy x0p (then x is not read).
-Var FaceLandmark68Net::forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& x0p) const {
-  k::Conv2dPadded xp = x0p;
-  Shape xs = x0p.defined() ? x0p.shape : x.shape();
-  Var y;
+// Four dense blocks (112 → 56 → 28 → 14 → 7), each writing its output in the
+// next one's input layout, then avgpool 7×7/2 valid → [N, 256] → fc.
+Var FaceLandmark68Net::body(Tape& t, const Var& x) const {
+  Var y = x;
   for (std::size_t i = 0; i < blocks_.size(); ++i) {
-    const Shape os = blocks_[i]->output_shape(xs);
-    const k::Conv2dPadded into =
-        i + 1 < blocks_.size() ? blocks_[i + 1]->padded_input(t, os) : k::Conv2dPadded{};
-    y = blocks_[i]->forward_inference(t, x, xp, into.defined() ? &into : nullptr);
-    xp = into;
-    xs = os;
+    const Shape os = blocks_[i]->output_shape(y.shape());
+    const k::PlaneLayout out =
+        i + 1 < blocks_.size() ? blocks_[i + 1]->input_layout(t, os) : k::PlaneLayout{};
+    y = blocks_[i]->forward(t, y, out);
   }
-  return head(t, y);
-}
-
-// avgpool 7×7/2 valid → [N, 256] → fc.
-Var FaceLandmark68Net::head(Tape& t, const Var& x7) const {
-  Var x = avg_pool2d(t, x7, k::pool_valid(7, 7, 2, 2));  // [N, 256, 1, 1]
-  x = reshape(t, x, Shape{x.shape()[0], x.shape()[1]});
-  return linear(t, x, fc_weights_, fc_bias_);
+  y = avg_pool2d(t, y, k::pool_valid(7, 7, 2, 2));  // [N, 256, 1, 1]
+  y = reshape(t, y, Shape{y.shape()[0], y.shape()[1]});
+  return linear(t, y, fc_weights_, fc_bias_);
 }
 
 std::array<float, FaceLandmark68Net::kOutputs> FaceLandmark68Net::relative_landmarks(
@@ -287,27 +212,17 @@ std::array<float, FaceLandmark68Net::kOutputs> FaceLandmark68Net::relative_landm
   // ReLU maps NaN to 0, so the network input is checked (as the detector
   // does): every value of the 112² input (the crop pixels the resize read)
   // must be finite.
+  // One pass from the crop to conv0's input (padded when its plan reads it
+  // so): pad to square, resize, normalize, flag non-finite values (no
+  // resize, normalize, padding or sum pass of its own).
   const Shape in{crop.shape()[0], 3, kLandmarkInputSize, kLandmarkInputSize};
-  Var raw;
-  float bad = 0;
-  if (infers(tape, in, false)) {
-    // One pass from the crop to conv0's padded input: pad to square, resize,
-    // normalize, flag non-finite values (no resize, normalize, padding or
-    // sum pass of its own).
-    const k::Conv2dPadded x0p = blocks_[0]->padded_input(tape, in);
-    const Tensor flag =
-        resize_normalized_into(stream, crop, square_canvas(crop.shape()[2], crop.shape()[3]),
-                               input_scale_, input_shift_, x0p);
-    raw = forward_inference(tape, Var(), x0p);
-    stream.run();
-    bad = flag.download()[0];
-  } else {
-    const Var input = to_landmark_input(tape, Var(crop));
-    const Var total = sum_all(tape, input);  // finite iff every value is (for sane ranges)
-    raw = forward(tape, input);
-    stream.run();
-    bad = std::isfinite(total.value().download()[0]) ? 0.f : 1.f;
-  }
+  Tensor flag;
+  const Var x =
+      resize_normalized(tape, crop, square_canvas(crop.shape()[2], crop.shape()[3]), in,
+                        input_scale_, input_shift_, blocks_[0]->input_layout(tape, in), flag);
+  const Var raw = body(tape, x);
+  stream.run();
+  const float bad = flag.download()[0];
   if (bad != 0) {
     throw InvalidArgument("FaceLandmark68Net", "the face crop holds NaN or infinite pixels",
                           "pass RGB values in 0..255");

@@ -89,11 +89,9 @@ class FaceLandmark68Net : public Module {
 
   // Crop [1, 3, h, w] → landmarks relative to the crop (postProcess output).
   std::array<float, kOutputs> relative_landmarks(Stream& stream, const Tensor& crop) const;
-  // Whether the inference path runs for an input of shape x112 (nothing needs
-  // a gradient, every conv has a variant with padded io).
-  bool infers(const Tape& t, const Shape& x112, bool input_needs_grad) const;
-  Var forward_inference(Tape& t, const Var& x, const kernels::Conv2dPadded& x0p) const;
-  Var head(Tape& t, const Var& x7) const;
+  // The network after the input normalization (x: plain, or in the first
+  // conv's input layout).
+  Var body(Tape& t, const Var& x) const;
 };
 
 }  // namespace vkjr2::nets

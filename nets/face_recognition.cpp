@@ -98,12 +98,14 @@ class FaceRecognitionNet::ConvLayer : public Module {
   bool folds(const Tape& t) const { return !t.needs_grad({&filters_, &bias_, &scale_, &shift_}); }
 
   // act(scale(conv(x)) + residual); residual (folded only, see folds()):
-  // [N, Cr <= Cout, Hout, Wout], added in the conv's epilogue.
-  Var forward(Tape& t, const Var& x, bool with_relu, const Var& residual = Var()) const {
+  // [N, Cr <= Cout, Hout, Wout], added in the conv's epilogue. out: the
+  // layout of the output's consumer (ConvPlans::input_layout).
+  Var forward(Tape& t, const Var& x, bool with_relu, const Var& residual = Var(),
+              const k::PlaneLayout& out = {}) const {
     k::Conv2dParams p = params(x.shape(), with_relu);
     if (folds(t)) {
       fold(t.stream());
-      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_packed_, residual);
+      return conv2d(t, x, folded_filters_, folded_bias_, p, &folded_plans_, residual, out);
     }
     p.activation = k::Activation::none;
     if (residual.defined()) {
@@ -113,6 +115,14 @@ class FaceRecognitionNet::ConvLayer : public Module {
     Var y = conv2d(t, x, filters_, bias_, p);
     y = channel_affine(t, y, scale_, shift_);
     return with_relu ? relu(t, y) : y;
+  }
+
+  // The layout forward() reads x of shape x in with no padding pass (plain
+  // unless the layer folds).
+  k::PlaneLayout input_layout(const Tape& t, const Shape& x) const {
+    if (!folds(t)) return {};
+    fold(t.stream());
+    return folded_plans_.input_layout(t, x, folded_filters_, folded_bias_, params(x, true));
   }
 
   // The conv's parameters for input x (activation: the folded form's).
@@ -128,22 +138,7 @@ class FaceRecognitionNet::ConvLayer : public Module {
   }
   Shape weight_shape() const { return filters_.shape(); }
 
-  // Inference only (folds(t), no gradient to x): the folded conv with x, y
-  // and the residual plain or padded (kernels::conv2d_padded); x_shape is x's.
-  void run_padded(Tape& t, const Shape& x_shape, const Tensor* x, const Tensor* y, bool with_relu,
-                  const k::Conv2dPaddedIo& io, const Tensor* residual = nullptr) const {
-    fold(t.stream());
-    const Tensor& b = folded_bias_.value();
-    k::conv2d_padded(t.stream(), x, folded_filters_.value(), &b, y, params(x_shape, with_relu), io,
-                     &folded_packed_.get(t.stream(), folded_filters_), residual);
-  }
-  bool runs_blocked(const Tape& t, const Shape& x) const {
-    return k::conv2d_select(t.device(), x, filters_.shape(), params(x, true)) ==
-           k::Conv2dAlgo::blocked;
-  }
-
-  // Records the folding and packing on `stream` unless the folded weights are
-  // up to date.
+  // Records the folding on `stream` unless the folded weights are up to date.
   void fold(Stream& stream) const {
     const std::array<std::uint64_t, 4> versions = {filters_.version(), bias_.version(),
                                                    scale_.version(), shift_.version()};
@@ -169,7 +164,6 @@ class FaceRecognitionNet::ConvLayer : public Module {
     }
     folded_filters_ = Var(fw);
     folded_bias_ = Var(fb);
-    folded_packed_.get(stream, folded_filters_);
     folded_versions_ = versions;
   }
 
@@ -178,7 +172,7 @@ class FaceRecognitionNet::ConvLayer : public Module {
   Tensor in_scale_, in_shift_taps_;  // fold_input_affine: [Cin] and [Cin·KH·KW, 1]
   mutable Var folded_filters_, folded_bias_;
   mutable std::array<std::uint64_t, 4> folded_versions_{};
-  ConvWeightCache folded_packed_;
+  ConvPlans folded_plans_;
   int kernel_ = 3;
   bool down_;
 };
@@ -195,43 +189,45 @@ class FaceRecognitionNet::Residual : public Module {
         "conv2", std::make_unique<ConvLayer>(device, r, name + "/conv2", 3, cout, cout, false));
   }
 
-  // relu(conv2(conv1(x)) + shortcut). When conv2 folds its scale layer the
-  // add and the ReLU run in its epilogue; the down blocks' shortcut (x
-  // average-pooled, its channels zero-padded) goes in without the zero
-  // channels (the conv adds none past the residual's channels), unless the
-  // branch needs the zero row and column (3×3 vs 4×4, 1×1 vs 2×2).
-  Var forward(Tape& t, const Var& x) const {
-    if (infers(t, x.shape()) && !t.needs_grad({&x})) return forward_inference(t, x, {}, nullptr);
+  // relu(conv2(conv1(x)) + shortcut); out: the layout of the output's
+  // consumer. When conv2 folds its scale layer the add and the ReLU run in
+  // its epilogue; the down blocks' shortcut (x average-pooled, its channels
+  // zero-padded) goes in without the zero channels (the conv adds none past
+  // the residual's channels), unless the branch needs the zero row and
+  // column (3×3 vs 4×4, 1×1 vs 2×2). In inference conv1 writes straight into
+  // conv2's padded input, and a non-down block's padded input is conv2's
+  // shortcut as it is (the same layout).
+  Var forward(Tape& t, const Var& x, const k::PlaneLayout& out) const {
     const bool fuse = conv2_->folds(t);
-    Var pooled;
-    if (down_) pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
-    const bool shortcut_fits = !down_ || fits(pooled.shape(), mid_shape(x.shape()));
-    Var out = conv1_->forward(t, x, true);
-    if (!down_) {
-      if (fuse) return conv2_->forward(t, out, true, x);
-      return relu(t, add(t, conv2_->forward(t, out, false), x));
+    Var shortcut = x;
+    if (down_) shortcut = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
+    const Shape mid = mid_shape(x.shape());
+    const bool shortcut_fits = !down_ || fits(shortcut.shape(), mid);
+    if (fuse && shortcut_fits) {
+      const Var y = conv1_->forward(t, x, true, Var(), conv2_->input_layout(t, mid));
+      return conv2_->forward(t, y, true, shortcut, out);
     }
-    const Shape& ps = pooled.shape();
-    if (fuse && shortcut_fits) return conv2_->forward(t, out, true, pooled);
-    out = conv2_->forward(t, out, false);
-    if (ps[2] != out.shape()[2] || ps[3] != out.shape()[3]) {
+    Var y = conv2_->forward(t, conv1_->forward(t, x, true), false);
+    if (!down_) return relu(t, add(t, y, shortcut));
+    const Shape& ps = shortcut.shape();
+    if (ps[2] != y.shape()[2] || ps[3] != y.shape()[3]) {
       // One zero row at the bottom, then one zero column at the right.
-      out = pad(t, out, k::Pad2d{0, 1, 0, 1}, 0.f);
+      y = pad(t, y, k::Pad2d{0, 1, 0, 1}, 0.f);
     }
-    if (ps[1] != out.shape()[1]) {
+    if (ps[1] != y.shape()[1]) {
       // Channels doubled by appending zeros to the shortcut.
-      Tensor zeros = Tensor::empty(x.value().device(), ps);
+      Tensor zeros = Tensor::empty(t.device(), ps);
       t.stream().fill(zeros, 0.f);
-      const std::array<Var, 2> parts = {pooled, Var(zeros)};
-      pooled = concat_channels(t, parts);
+      const std::array<Var, 2> parts = {shortcut, Var(zeros)};
+      shortcut = concat_channels(t, parts);
     }
-    if (!(pooled.shape() == out.shape())) {
+    if (!(shortcut.shape() == y.shape())) {
       throw Error("FaceRecognitionNet",
-                  "residual shortcut " + pooled.shape().str() + " does not match branch " +
-                      out.shape().str(),
+                  "residual shortcut " + shortcut.shape().str() + " does not match branch " +
+                      y.shape().str(),
                   "the input must be 150×150 (use to_recognition_input)");
     }
-    return relu(t, add(t, pooled, out));
+    return relu(t, add(t, shortcut, y));
   }
 
   void fold(Stream& stream) const {
@@ -245,53 +241,10 @@ class FaceRecognitionNet::Residual : public Module {
   }
   Shape output_shape(const Shape& x) const { return down_ ? mid_shape(x) : x; }
 
-  // Whether forward_inference can run this block for x of shape x (nothing
-  // needing a gradient aside): both convs fold and run blocked, the
-  // shortcut goes into conv2's epilogue.
-  bool infers(const Tape& t, const Shape& x) const {
-    const Shape mid = mid_shape(x);
-    const Shape pooled{x[0], x[1], (x[2] - 2) / 2 + 1, (x[3] - 2) / 2 + 1};  // avg pool 2, 2
-    return conv1_->folds(t) && conv2_->folds(t) && (!down_ || fits(pooled, mid)) &&
-           conv1_->runs_blocked(t, x) && conv2_->runs_blocked(t, mid);
-  }
-
-  // conv1's zero-padded input for x of shape x, for the previous block to
-  // write its output into (zero-filled); undefined for the down blocks
-  // (their input also feeds the average pool).
-  k::Conv2dPadded padded_input(Tape& t, const Shape& x) const {
-    if (down_) return {};
-    return k::conv2d_padded_input(t.stream(), x, conv1_->weight_shape(), conv1_->params(x, true));
-  }
-
-  // Inference (infers(), no gradient to x): x plain, or (xp defined, a
-  // non-down block) only as conv1's padded input, which is then conv2's
-  // shortcut too (same layout). conv1 writes straight into conv2's padded
-  // input; conv2 writes into `into` (the next block's padded input) when
-  // given (the result is then undefined), else returns its output.
-  Var forward_inference(Tape& t, const Var& x, const k::Conv2dPadded& xp,
-                        const k::Conv2dPadded* into) const {
-    const Shape xs = xp.defined() ? xp.shape : x.shape();
-    const Shape mid = mid_shape(xs);
-    Var pooled;
-    if (down_) pooled = avg_pool2d(t, x, k::pool_valid(2, 2, 2, 2));
-    const k::Conv2dPadded mid_p =
-        k::conv2d_padded_input(t.stream(), mid, conv2_->weight_shape(), conv2_->params(mid, true));
-    k::Conv2dPaddedIo io1;
-    io1.x = xp.defined() ? &xp : nullptr;
-    io1.y = &mid_p;
-    conv1_->run_padded(t, xs, xp.defined() ? nullptr : &x.value(), nullptr, true, io1);
-    k::Conv2dPaddedIo io2;
-    io2.x = &mid_p;
-    io2.y = into;
-    io2.residual = xp.defined() ? &xp : nullptr;
-    const Tensor* shortcut = xp.defined() ? nullptr : (down_ ? &pooled.value() : &x.value());
-    if (into != nullptr) {
-      conv2_->run_padded(t, mid, nullptr, nullptr, true, io2, shortcut);
-      return Var();
-    }
-    Tensor y = Tensor::empty(t.stream().device(), mid);
-    conv2_->run_padded(t, mid, nullptr, &y, true, io2, shortcut);
-    return t.output(y, false);
+  // The layout forward() reads x of shape x in with no padding pass: conv1's
+  // (plain for the down blocks: their input also feeds the average pool).
+  k::PlaneLayout input_layout(const Tape& t, const Shape& x) const {
+    return down_ ? k::PlaneLayout{} : conv1_->input_layout(t, x);
   }
 
  private:
@@ -349,8 +302,8 @@ FaceRecognitionNet::FaceRecognitionNet(const Device& device, const TfjsWeights& 
   input_shift_ = input.shift_var;
   conv32_down_->fold_input_affine(device, input.scale, input.shift);
 
-  // The scale layers folded into the convs and their weights packed, once at
-  // load (again only after a parameter changed).
+  // The scale layers folded into the convs once at load (again only after a
+  // parameter changed).
   Stream stream(device);
   conv32_down_->fold(stream);
   for (const Residual* block : blocks_) block->fold(stream);
@@ -383,34 +336,16 @@ Var FaceRecognitionNet::forward(Tape& t, const Var& rgb) const {
   // The normalization is folded into conv32_down's folded weights.
   Var x = conv32_down_->folds(t) ? rgb : channel_affine(t, rgb, input_scale_, input_shift_);
   x = conv32_down_->forward(t, x, true);
-  const k::Pool2d pool = k::pool_valid(3, 3, 2, 2);
   // Inference: the max pool and each block write their output straight into
-  // the next block's padded conv1 input when that block runs inference and is
-  // no down block.
-  k::Conv2dPadded xp;  // defined: the block input, held only there (x undefined)
-  const Shape pooled = k::pool_output_shape(x.shape(), pool);
-  if (!t.needs_grad({&x}) && blocks_.front()->infers(t, pooled)) {
-    xp = blocks_.front()->padded_input(t, pooled);
-  }
-  if (xp.defined()) {
-    k::max_pool2d_into_padded(t.stream(), x.value(), pool, xp);
-    x = Var();
-  } else {
-    x = max_pool2d(t, x, pool);
-  }
+  // the next block's padded conv1 input (a down block takes it plain).
+  const k::Pool2d pool = k::pool_valid(3, 3, 2, 2);
+  x = max_pool2d(t, x, pool,
+                 blocks_.front()->input_layout(t, k::pool_output_shape(x.shape(), pool)));
   for (std::size_t i = 0; i < blocks_.size(); ++i) {
-    const Residual* block = blocks_[i];
-    const Shape xs = xp.defined() ? xp.shape : x.shape();
-    if (!xp.defined() && !(block->infers(t, xs) && !t.needs_grad({&x}))) {
-      x = block->forward(t, x);
-      continue;
-    }
-    const Residual* next = i + 1 < blocks_.size() ? blocks_[i + 1] : nullptr;
-    const Shape ys = block->output_shape(xs);
-    k::Conv2dPadded into;
-    if (next != nullptr && next->infers(t, ys)) into = next->padded_input(t, ys);
-    x = block->forward_inference(t, x, xp, into.defined() ? &into : nullptr);
-    xp = into;
+    const Shape ys = blocks_[i]->output_shape(x.shape());
+    const k::PlaneLayout out =
+        i + 1 < blocks_.size() ? blocks_[i + 1]->input_layout(t, ys) : k::PlaneLayout{};
+    x = blocks_[i]->forward(t, x, out);
   }
   x = global_avg_pool(t, x);
   x = reshape(t, x, Shape{x.shape()[0], x.shape()[1]});

@@ -18,18 +18,16 @@ class Conv2d : public Module {
   // fused activation. in_channels must be a multiple of params.groups.
   Conv2d(const Device& device, int in_channels, int out_channels, int kernel_h, int kernel_w,
          const kernels::Conv2dParams& params, bool bias, std::uint32_t seed);
-  // The weight's packed form is cached between calls and rebuilt after it
-  // changed (Var::version()).
-  Var forward(Tape& t, const Var& x) const {
-    return conv2d(t, x, weight, bias, params, &packed_weight_);
-  }
+  // The plan per input shape is made once; the weight's packed form is kept
+  // between calls and rebuilt after it changed (Var::version()).
+  Var forward(Tape& t, const Var& x) const { return conv2d(t, x, weight, bias, params, &plans_); }
 
   Var weight;  // [out, in/groups, kh, kw]
   Var bias;    // [out] or undefined
   kernels::Conv2dParams params;
 
  private:
-  ConvWeightCache packed_weight_;
+  ConvPlans plans_;
 };
 
 class Linear : public Module {

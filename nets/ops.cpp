@@ -242,31 +242,99 @@ Var log_softmax(Tape& t, const Var& x) {
 
 // ---- layers' compute --------------------------------------------------------------
 
-const k::Conv2dPackedWeight& ConvWeightCache::get(Stream& stream, const Var& weight) const {
+struct ConvPlans::Entry {
+  Shape x, weight;
+  k::Conv2dParams p;
+  k::Conv2dPlan plan;
+  std::weak_ptr<const detail::VarState> source;  // the weight plan.pack() read
+  std::uint64_t version = 0;
+};
+
+ConvPlans::ConvPlans() : mutex_(std::make_unique<std::mutex>()) {}
+ConvPlans::~ConvPlans() = default;
+
+k::Conv2dPlan& ConvPlans::entry(const Device& device, const Shape& x, const Shape& weight,
+                                const k::Conv2dParams& p, Entry** found) const {
+  for (Entry& e : entries_) {
+    if (e.plan.made_for(device) && e.x == x && e.weight == weight && e.p == p) {
+      *found = &e;
+      return e.plan;
+    }
+  }
+  Entry e;
+  e.x = x;
+  e.weight = weight;
+  e.p = p;
+  e.plan = k::Conv2dPlan(device, x, weight, p);
+  entries_.push_back(std::move(e));
+  *found = &entries_.back();
+  return entries_.back().plan;
+}
+
+k::Conv2dPlan ConvPlans::get(Stream& stream, const Shape& x, const Var& weight,
+                             const k::Conv2dParams& p) const {
   const std::shared_ptr<const detail::VarState> current = weight.state();
   if (!current) {
-    throw InvalidArgument("ConvWeightCache::get", "the weight is undefined", "pass a conv weight");
+    throw InvalidArgument("ConvPlans::get", "the weight is undefined", "pass a conv weight");
   }
-  if (!packed_.defined() || source_.lock() != current || version_ != weight.version()) {
-    packed_ = k::conv2d_pack_weight(stream, weight.value());
-    source_ = current;
-    version_ = weight.version();
+  const std::lock_guard<std::mutex> lock(*mutex_);
+  Entry* e = nullptr;
+  k::Conv2dPlan& plan = entry(stream.device(), x, weight.shape(), p, &e);
+  if (plan.reads_packed_weight() &&
+      (!plan.packed() || e->source.lock() != current || e->version != weight.version())) {
+    plan.pack(stream, weight.value());
+    e->source = current;
+    e->version = weight.version();
   }
-  return packed_;
+  return plan;
+}
+
+k::PlaneLayout ConvPlans::input_layout(const Tape& t, const Shape& x, const Var& weight,
+                                       const Var& bias, const k::Conv2dParams& p) const {
+  if (t.needs_grad({&weight, &bias})) return {};
+  const std::lock_guard<std::mutex> lock(*mutex_);
+  Entry* e = nullptr;
+  return entry(t.device(), x, weight.shape(), p, &e).input_layout();
+}
+
+Tensor plain(Tape& t, const Var& x) {
+  return x.padded() ? k::unpad(t.stream(), x.planes()) : x.value();
 }
 
 Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
-           const kernels::Conv2dParams& p, const ConvWeightCache* cache, const Var& residual) {
-  Tensor y = empty(x, k::conv2d_output_shape(x.shape(), weight.shape(), p));
-  const Tensor* b = bias.defined() ? &bias.value() : nullptr;
-  const Tensor* r = residual.defined() ? &residual.value() : nullptr;
-  const k::Conv2dPackedWeight* packed = nullptr;
-  if (cache != nullptr && k::conv2d_uses_packed_weight(
-                              k::conv2d_select(t.device(), x.value().shape(), weight.shape(), p))) {
-    packed = &cache->get(t.stream(), weight);
+           const kernels::Conv2dParams& p, const ConvPlans* plans, const Var& residual,
+           const k::PlaneLayout& out) {
+  const bool grad = t.needs_grad({&x, &weight, &bias, &residual});
+  if (grad && p.relu_input) {  // the backward kernels differentiate conv(x)
+    k::Conv2dParams q = p;
+    q.relu_input = false;
+    return conv2d(t, relu(t, x.padded() ? Var(plain(t, x)) : x), weight, bias, q, plans, residual,
+                  out);
   }
-  k::conv2d(t.stream(), x.value(), weight.value(), b, y, p, packed, r);
-  auto step = [x, weight, bias, residual, y, p](Tape& tape, const Tensor& dy) {
+  Stream& stream = t.stream();
+  const k::Conv2dPlan plan = plans != nullptr
+                                 ? plans->get(stream, x.shape(), weight, p)
+                                 : k::Conv2dPlan(t.device(), x.shape(), weight.shape(), p);
+  // x and the residual as the plan reads them: padded in the layouts it
+  // takes, else plain.
+  k::Planes xp = x.planes();
+  if (xp.padded() && !(xp.layout == plan.input_layout())) xp = k::Planes::of(k::unpad(stream, xp));
+  k::Planes rp;
+  if (residual.defined()) {
+    rp = residual.planes();
+    if (rp.padded() && !plan.residual_misfit(rp).empty()) rp = k::Planes::of(k::unpad(stream, rp));
+  }
+  const bool padded_out = !grad && !out.plain() && plan.writes_padded();
+  const k::Planes yp = padded_out ? k::Planes::make(stream, plan.output_shape(), out)
+                                  : k::Planes::of(Tensor::empty(t.device(), plan.output_shape()));
+  plan.run(stream, xp, weight.value(), bias.defined() ? &bias.value() : nullptr, yp,
+           residual.defined() ? &rp : nullptr);
+  if (padded_out) return Var(yp);
+  const Tensor& y = yp.data;
+  // The backward reads x plain (a padded x needs no gradient itself, but the
+  // weight's may need it).
+  const Tensor x_value = grad && t.needs_grad({&weight}) ? plain(t, x) : Tensor();
+  auto step = [x, x_value, weight, bias, residual, y, p](Tape& tape, const Tensor& dy) {
     Stream& s = tape.stream();
     // The backward kernels take the pre-activation gradient; ReLU/LeakyReLU
     // derivatives follow sign(y) = sign(pre-activation).
@@ -287,7 +355,7 @@ Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
     if (gr) k::slice(s, d_pre, k::SliceStart{}, gr.target);
     if (gx) k::conv2d_backward_data(s, d_pre, weight.value(), gx.target, pb);
     if (gw) {
-      k::conv2d_backward_weight(s, x.value(), d_pre, gw.target, gb.ptr(), pb);
+      k::conv2d_backward_weight(s, x_value, d_pre, gw.target, gb.ptr(), pb);
     } else if (gb) {
       k::sum_channels(s, d_pre, gb.target);
     }
@@ -312,8 +380,13 @@ Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias) {
   });
 }
 
-Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p) {
+Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p, const k::PlaneLayout& out) {
   const Shape shape = k::pool_output_shape(x.shape(), p);
+  if (!out.plain() && !t.needs_grad({&x})) {
+    const k::Planes y = k::Planes::make(t.stream(), shape, out);
+    k::max_pool2d_into_padded(t.stream(), plain(t, x), p, y);
+    return Var(y);
+  }
   Tensor y = empty(x, shape);
   // The argmax indices only when the backward can run.
   Tensor indices;

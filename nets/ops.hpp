@@ -13,6 +13,7 @@
 
 #include <cstdint>
 #include <memory>
+#include <mutex>
 #include <span>
 #include <vector>
 
@@ -45,33 +46,57 @@ Var softmax(Tape& t, const Var& x);      // over the last axis
 Var log_softmax(Tape& t, const Var& x);  // over the last axis
 
 // ---- layers' compute ------------------------------------------------------------
-// A conv weight packed for the fast conv variants (kernels::conv2d_pack_weight)
-// once, and again only after the weight changed (another Var, or a new
-// Var::version(): optimizer steps, set_value, checkpoint loads). A layer holds
-// one per weight and passes it to conv2d(); it keeps the packed copy alive.
-// Not synchronized: run one forward at a time through a layer that holds one.
-class ConvWeightCache {
+// A layer's convolution plans (kernels::Conv2dPlan): one per input shape and
+// device, made on first use, each holding the weight packed for its variant
+// (packed again only after the weight changed: another Var, or a new
+// Var::version(): optimizer steps, set_value, checkpoint loads). A layer
+// holds one per weight; thread-safe.
+class ConvPlans {
  public:
-  // The packed form of `weight`, packing it on `stream` when stale.
-  const kernels::Conv2dPackedWeight& get(Stream& stream, const Var& weight) const;
+  ConvPlans();
+  ~ConvPlans();
+  ConvPlans(const ConvPlans&) = delete;
+  ConvPlans& operator=(const ConvPlans&) = delete;
+
+  // The plan for x of shape x, with weight packed on `stream` when stale.
+  kernels::Conv2dPlan get(Stream& stream, const Shape& x, const Var& weight,
+                          const kernels::Conv2dParams& p) const;
+  // The layout in which conv2d() reads x of shape x with no padding pass:
+  // the plan's input layout, or plain when the weight or bias needs a
+  // gradient (the backward reads x plain). The producer of x passes it as
+  // its `out`.
+  kernels::PlaneLayout input_layout(const Tape& t, const Shape& x, const Var& weight,
+                                    const Var& bias, const kernels::Conv2dParams& p) const;
 
  private:
-  mutable std::weak_ptr<const detail::VarState> source_;
-  mutable std::uint64_t version_ = 0;
-  mutable kernels::Conv2dPackedWeight packed_;
+  struct Entry;
+  kernels::Conv2dPlan& entry(const Device& device, const Shape& x, const Shape& weight,
+                             const kernels::Conv2dParams& p, Entry** found) const;
+  mutable std::vector<Entry> entries_;
+  mutable std::unique_ptr<std::mutex> mutex_;
 };
 
-// act(conv(x, weight) + bias + residual); weight OIHW; bias and residual may
-// be undefined. cache: where weight's packed form is kept between calls
-// (nullptr: packed per call). residual: [N, Cr, Hout, Wout], Cr <= Cout (the
-// channels past Cr get none: a shortcut zero-padded in channels), added in
-// the conv's epilogue (a residual block's add and ReLU in one dispatch).
+// act(conv(relu?(x), weight) + bias + residual); weight OIHW; bias and
+// residual may be undefined (p.relu_input: the ReLU on x, fused into the
+// depthwise and direct variants when nothing needs a gradient). plans: the
+// layer's plans (nullptr: a plan and packed weight per call). residual:
+// [N, Cr, Hout, Wout], Cr <= Cout (the channels past Cr get none: a
+// shortcut zero-padded in channels), added in the conv's epilogue (a
+// residual block's add and ReLU in one dispatch). x and residual may be
+// padded Vars. out: the layout of the output's consumer
+// (ConvPlans::input_layout): the output is written in it when it needs no
+// gradient and the variant writes padded planes, else plain.
 Var conv2d(Tape& t, const Var& x, const Var& weight, const Var& bias,
-           const kernels::Conv2dParams& p, const ConvWeightCache* cache = nullptr,
-           const Var& residual = Var());
+           const kernels::Conv2dParams& p, const ConvPlans* plans = nullptr,
+           const Var& residual = Var(), const kernels::PlaneLayout& out = {});
+// The value of x as a plain tensor (a copy of the interior when x is padded).
+Tensor plain(Tape& t, const Var& x);
 // x [M, K] · weight [K, N] (+ bias [N] when defined).
 Var linear(Tape& t, const Var& x, const Var& weight, const Var& bias);
-Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p);
+// out: as conv2d's (the output written into its consumer's padded input
+// when it needs no gradient).
+Var max_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p,
+               const kernels::PlaneLayout& out = {});
 Var avg_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p, bool count_include_pad = false);
 Var global_avg_pool(Tape& t, const Var& x);  // [N, C, 1, 1]
 Var resize(Tape& t, const Var& x, kernels::ResizeMode mode, std::int64_t out_h, std::int64_t out_w);

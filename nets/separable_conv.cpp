@@ -38,45 +38,17 @@ Shape SeparableConv3x3::output_shape(const Shape& x) const {
   return Shape{mid[0], out_channels(), mid[2], mid[3]};
 }
 
-Var SeparableConv3x3::forward(Tape& t, const Var& x, k::Activation act, float slope) const {
-  const Var mid = conv2d(t, x, depthwise_, Var(), dw_params(x.shape()));
-  return conv2d(t, mid, pointwise_, bias_, pw_params(act, slope), &pointwise_packed_);
+Var SeparableConv3x3::forward(Tape& t, const Var& x, k::Activation act, float slope,
+                              const SeparableExtras& extras) const {
+  k::Conv2dParams dw = dw_params(x.shape());
+  dw.relu_input = extras.relu_input;
+  const Var mid = conv2d(t, x, depthwise_, Var(), dw, &depthwise_plans_);
+  return conv2d(t, mid, pointwise_, bias_, pw_params(act, slope), &pointwise_plans_,
+                extras.residual, extras.out);
 }
 
-void SeparableConv3x3::pack(Stream& s) const { pointwise_packed_.get(s, pointwise_); }
-
-bool SeparableConv3x3::infers(const Tape& t, const Shape& x) const {
-  if (t.needs_grad({&depthwise_, &pointwise_, &bias_})) return false;
-  const Device& device = t.device();
-  return k::conv2d_select(device, x, depthwise_.shape(), dw_params(x)) ==
-             k::Conv2dAlgo::depthwise &&
-         k::conv2d_select(device, mid_shape(x), pointwise_.shape(),
-                          pw_params(k::Activation::none, 0.f)) == k::Conv2dAlgo::pointwise;
-}
-
-k::Conv2dPadded SeparableConv3x3::padded_input(Tape& t, const Shape& x) const {
-  return k::conv2d_padded_input(t.stream(), x, depthwise_.shape(), dw_params(x));
-}
-
-Var SeparableConv3x3::run_padded(Tape& t, const k::Conv2dPadded& xp, bool relu_input,
-                                 k::Activation act, float slope, const k::Conv2dPadded* residual,
-                                 const k::Conv2dPadded* into) const {
-  Stream& s = t.stream();
-  k::Conv2dParams dw = dw_params(xp.shape);
-  dw.relu_input = relu_input;
-  const Tensor mid = Tensor::empty(s.device(), mid_shape(xp.shape));
-  k::Conv2dPaddedIo io_dw;
-  io_dw.x = &xp;
-  k::conv2d_padded(s, nullptr, depthwise_.value(), nullptr, &mid, dw, io_dw);
-  k::Conv2dPaddedIo io_pw;
-  io_pw.y = into;
-  io_pw.residual = residual;
-  const k::Conv2dPackedWeight& packed = pointwise_packed_.get(s, pointwise_);
-  Tensor y;
-  if (into == nullptr) y = Tensor::empty(s.device(), output_shape(xp.shape));
-  k::conv2d_padded(s, &mid, pointwise_.value(), &bias_.value(), into == nullptr ? &y : nullptr,
-                   pw_params(act, slope), io_pw, &packed);
-  return into == nullptr ? t.output(y, false) : Var();
+k::PlaneLayout SeparableConv3x3::input_layout(const Tape& t, const Shape& x) const {
+  return depthwise_plans_.input_layout(t, x, depthwise_, Var(), dw_params(x));
 }
 
 }  // namespace vkjr2::nets

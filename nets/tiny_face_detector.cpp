@@ -166,13 +166,6 @@ TinyFaceDetector::TinyFaceDetector(const Device& device, const TfjsWeights& weig
   const InputAffine input = mean_rgb_affine(device, kMeanRgb);
   input_scale_ = input.scale_var;
   input_shift_ = input.shift_var;
-
-  // Conv weights packed once at load (repacked only if a weight changes).
-  Stream stream(device);
-  conv0_packed_.get(stream, conv0_filters_);
-  for (const SeparableConv3x3* c : convs_) c->pack(stream);
-  conv8_packed_.get(stream, conv8_filters_);
-  stream.run();
 }
 
 TinyFaceDetector::~TinyFaceDetector() = default;
@@ -187,10 +180,7 @@ Var TinyFaceDetector::forward(Tape& t, const Var& x) const {
             ", expected [N, 3, S, S] with S a positive multiple of 32 (RGB 0..255)",
         "pad and resize the image with TinyFaceDetector::preprocess first");
   }
-  const Var y = channel_affine(t, x, input_scale_, input_shift_);
-  // runMobilenet with isFirstLayerConv2d: leaky(convLayer(x, conv0, 'valid')).
-  return after_conv0(t, conv2d(t, y, conv0_filters_, conv0_bias_, conv0_params(), &conv0_packed_),
-                     t.needs_grad({&x}));
+  return body(t, channel_affine(t, x, input_scale_, input_shift_));
 }
 
 k::Conv2dParams TinyFaceDetector::conv0_params() {
@@ -200,30 +190,18 @@ k::Conv2dParams TinyFaceDetector::conv0_params() {
   return p0;
 }
 
-// The network after conv0 (y: its output); input_needs_grad: whether the
-// image before it needs a gradient.
-Var TinyFaceDetector::after_conv0(Tape& t, Var y, bool input_needs_grad) const {
-  // Inference (nothing needs a gradient): each max pool writes straight into
-  // the next depthwise conv's zero-padded input (no padding pass).
-  bool infers = !input_needs_grad && !t.needs_grad({&conv0_filters_, &conv0_bias_});
-  Shape s = y.shape();
-  for (const SeparableConv3x3* c : convs_) {
-    s = k::pool_output_shape(s, k::pool_same(2, 2, 2, 2, s[2], s[3]));
-    infers = infers && c->infers(t, s);
-    s = c->output_shape(s);
-  }
+// runMobilenet with isFirstLayerConv2d: leaky(convLayer(x, conv0, 'valid')),
+// then each max pool (written straight into the next depthwise conv's padded
+// input in inference) and separable conv, the last pool and conv8.
+Var TinyFaceDetector::body(Tape& t, const Var& x) const {
+  Var y = conv2d(t, x, conv0_filters_, conv0_bias_, conv0_params(), &conv0_plans_);
   for (const SeparableConv3x3* c : convs_) {
     const k::Pool2d pool = k::pool_same(2, 2, 2, 2, y.shape()[2], y.shape()[3]);
-    if (infers) {
-      const k::Conv2dPadded xp = c->padded_input(t, k::pool_output_shape(y.shape(), pool));
-      k::max_pool2d_into_padded(t.stream(), y.value(), pool, xp);
-      y = c->run_padded(t, xp, false, k::Activation::leaky_relu, kLeakySlope, nullptr, nullptr);
-    } else {
-      y = c->forward(t, max_pool2d(t, y, pool), k::Activation::leaky_relu, kLeakySlope);
-    }
+    y = max_pool2d(t, y, pool, c->input_layout(t, k::pool_output_shape(y.shape(), pool)));
+    y = c->forward(t, y, k::Activation::leaky_relu, kLeakySlope);
   }
   y = max_pool2d(t, y, k::pool_same(2, 2, 1, 1, y.shape()[2], y.shape()[3]));
-  return conv2d(t, y, conv8_filters_, conv8_bias_, k::Conv2dParams{}, &conv8_packed_);
+  return conv2d(t, y, conv8_filters_, conv8_bias_, k::Conv2dParams{}, &conv8_plans_);
 }
 
 Tensor TinyFaceDetector::preprocess(Stream& stream, const Tensor& image, int input_size) const {
@@ -256,34 +234,19 @@ std::vector<FaceDetection> TinyFaceDetector::detect(Stream& stream, const Tensor
   Tape tape(stream, /*recording=*/false);
   // Max pools and fused ReLUs can drop a NaN, so the network input is checked:
   // every value the network reads (the pixels the resize read) must be finite.
+  // One pass from the image to conv0's input (padded when its plan reads it
+  // so): padToSquare (all the padding after the image), resize, normalize,
+  // flag non-finite values (no resize, sum, normalize or padding pass of its
+  // own).
   const Shape in{1, 3, input_size, input_size};
-  const k::Conv2dParams p0 = conv0_params();
-  const k::Conv2dPadded x0p = k::conv2d_padded_input(stream, in, conv0_filters_.shape(), p0);
-  Var out;
-  float bad = 0;
-  if (x0p.defined()) {
-    // One pass from the image to conv0's padded input: padToSquare (all the
-    // padding after the image), resize, normalize, flag non-finite values
-    // (no resize, sum, normalize or padding pass of its own).
-    const std::int64_t side = std::max(h, w);
-    const Tensor flag = resize_normalized_into(stream, image, k::ResizeCanvas{side, side, 0, 0},
-                                               input_scale_, input_shift_, x0p);
-    const Tensor y0 =
-        Tensor::empty(image.device(), k::conv2d_output_shape(in, conv0_filters_.shape(), p0));
-    k::Conv2dPaddedIo io;
-    io.x = &x0p;
-    k::conv2d_padded(stream, nullptr, conv0_filters_.value(), &conv0_bias_.value(), &y0, p0, io,
-                     &conv0_packed_.get(stream, conv0_filters_));
-    out = after_conv0(tape, Var(y0), false);
-    stream.run();
-    bad = flag.download()[0];
-  } else {
-    const Var input(preprocess(stream, image, input_size));
-    const Var total = sum_all(tape, input);  // finite iff every value is (for sane ranges)
-    out = forward(tape, input);
-    stream.run();
-    bad = std::isfinite(total.value().download()[0]) ? 0.f : 1.f;
-  }
+  const std::int64_t side = std::max(h, w);
+  Tensor flag;
+  const Var x = resize_normalized(
+      tape, image, k::ResizeCanvas{side, side, 0, 0}, in, input_scale_, input_shift_,
+      conv0_plans_.input_layout(tape, in, conv0_filters_, conv0_bias_, conv0_params()), flag);
+  const Var out = body(tape, x);
+  stream.run();
+  const float bad = flag.download()[0];
   if (bad != 0) {
     throw InvalidArgument(op, "the image holds NaN or infinite pixels",
                           "pass RGB values in 0..255");

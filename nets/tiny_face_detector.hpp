@@ -109,12 +109,14 @@ class TinyFaceDetector : public Module {
 
  private:
   static kernels::Conv2dParams conv0_params();
-  Var after_conv0(Tape& t, Var y, bool input_needs_grad) const;
+  // The network after the input normalization (x: plain, or in conv0's
+  // input layout).
+  Var body(Tape& t, const Var& x) const;
 
   Var conv0_filters_, conv0_bias_;
   std::vector<const SeparableConv3x3*> convs_;  // conv1 … conv5
   Var conv8_filters_, conv8_bias_;
-  ConvWeightCache conv0_packed_, conv8_packed_;
+  ConvPlans conv0_plans_, conv8_plans_;
   Var input_scale_, input_shift_;  // 1/255 and −mean/255 per channel
 };
 

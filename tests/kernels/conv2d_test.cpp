@@ -205,7 +205,7 @@ std::vector<Conv2dAlgo> runnable(const Device& dev, const Case& c) {
     Conv2dParams p = c.p;
     p.algo = a;
     try {
-      kernels::conv2d_select(dev, x_shape(c.d), w_shape(c.d, c.p.groups), p);
+      const kernels::Conv2dPlan plan(dev, x_shape(c.d), w_shape(c.d, c.p.groups), p);
       algos.push_back(a);
     } catch (const InvalidArgument&) {
     }
@@ -247,10 +247,13 @@ void check_forward(const Case& c, std::uint32_t seed) {
     for (const Tensor* t : {&y, &y2, &y3, &y4}) s.fill(*t, std::numeric_limits<float>::quiet_NaN());
     kernels::conv2d(s, x, w, &b, y, p);
     kernels::conv2d(s, x, w, nullptr, y2, p);
-    // Weights packed once, ahead of the call (what models do at load).
-    const kernels::Conv2dPackedWeight packed = kernels::conv2d_pack_weight(s, w);
-    kernels::conv2d(s, x, w, &b, y3, p, &packed);
-    kernels::conv2d(s, x, w, &b, y4, p, &packed, &r);
+    // A plan made once, its weights packed ahead of the calls (what layers do).
+    kernels::Conv2dPlan plan(dev, x.shape(), w.shape(), p);
+    EXPECT_EQ(plan.algo(), a);
+    plan.pack(s, w);
+    const kernels::Planes rp = kernels::Planes::of(r);
+    plan.run(s, kernels::Planes::of(x), w, &b, kernels::Planes::of(y3));
+    plan.run(s, kernels::Planes::of(x), w, &b, kernels::Planes::of(y4), &rp);
     s.run();
     expect_close(y.download(), want, std::string("forward ") + kernels::conv2d_algo_name(a));
     expect_close(y2.download(), want_nobias,
@@ -312,8 +315,8 @@ TEST(Conv2d, BackwardMatchesReference) {
 }
 
 // A blocked conv writing straight into the zero-padded input of the next
-// one (conv2d_into_padded), which reads it with no padding pass
-// (conv2d_from_padded): the two match the reference chained on the host.
+// one (planes in the consumer's Conv2dPlan::input_layout), which reads it
+// with no padding pass: the two match the reference chained on the host.
 void check_padded_chain(const Case& c, std::uint32_t seed) {
   Device& dev = test::device();
   SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
@@ -339,19 +342,21 @@ void check_padded_chain(const Case& c, std::uint32_t seed) {
   const auto mid = ref::conv2d(xs, wv, bv, c.d, c.p);
   const auto want = ref::conv2d(mid, wv2, {}, d2, p2, rv, d2.cout);
   Stream s(dev);
-  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, ys, ws2, p2);
-  if (!xp.defined()) {  // 1 input channel: the consumer runs depthwise, reading x unpadded
-    EXPECT_NE(kernels::conv2d_select(dev, ys, ws2, p2), Conv2dAlgo::blocked);
+  const kernels::Conv2dPlan plan2(dev, ys, ws2, p2);
+  if (plan2.input_layout().plain()) {  // the consumer reads x plain (not blocked or depthwise)
+    EXPECT_NE(plan2.algo(), Conv2dAlgo::blocked);
     return;
   }
+  const kernels::Planes xp = kernels::Planes::make(s, ys, plan2.input_layout());
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
   Tensor w = Tensor::from(dev, ws, wv);
   Tensor b = Tensor::from(dev, {c.d.cout}, bv);
   Tensor w2 = Tensor::from(dev, ws2, wv2);
   Tensor r = Tensor::from(dev, y_shape(c2), rv);
   Tensor y = Tensor::empty(dev, y_shape(c2));
-  kernels::conv2d_into_padded(s, x, w, &b, xp, p1);
-  kernels::conv2d_from_padded(s, xp, w2, nullptr, y, p2, nullptr, &r);
+  const kernels::Planes rp = kernels::Planes::of(r);
+  kernels::Conv2dPlan(dev, x.shape(), ws, p1).run(s, kernels::Planes::of(x), w, &b, xp);
+  plan2.run(s, xp, w2, nullptr, kernels::Planes::of(y), &rp);
   s.run();
   expect_close(y.download(), want, "conv into padded, conv from padded");
 }
@@ -383,28 +388,29 @@ TEST(Conv2d, ResidualInThePaddedInputLayout) {
   const auto mid = ref::conv2d(x0, w0, {}, d0, p);
   const auto want = ref::conv2d(mid, w1, b1, d1, p, mid, d1.cin);
   Stream s(dev);
-  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x_shape(d1), w_shape(d1, 1), p);
-  ASSERT_TRUE(xp.defined());
+  const kernels::Conv2dPlan plan1(dev, x_shape(d1), w_shape(d1, 1), p);
+  ASSERT_FALSE(plan1.input_layout().plain());
+  const kernels::Planes xp = kernels::Planes::make(s, x_shape(d1), plan1.input_layout());
   Tensor x = Tensor::from(dev, x_shape(d0), x0);
   Tensor tw0 = Tensor::from(dev, w_shape(d0, 1), w0);
   Tensor tw1 = Tensor::from(dev, w_shape(d1, 1), w1);
   Tensor tb1 = Tensor::from(dev, {d1.cout}, b1);
   Tensor y = Tensor::empty(dev, {2, 12, 9, 11});
-  kernels::Conv2dPaddedIo io0;
-  io0.y = &xp;
-  kernels::conv2d_padded(s, &x, tw0, nullptr, nullptr, p, io0);
-  kernels::Conv2dPaddedIo io1;
-  io1.x = &xp;
-  io1.residual = &xp;
-  kernels::conv2d_padded(s, nullptr, tw1, &tb1, &y, p, io1);
+  kernels::Conv2dPlan(dev, x_shape(d0), w_shape(d0, 1), p)
+      .run(s, kernels::Planes::of(x), tw0, nullptr, xp);
+  EXPECT_EQ(plan1.residual_misfit(xp), "");
+  plan1.run(s, xp, tw1, &tb1, kernels::Planes::of(y), &xp);
   s.run();
   expect_close(y.download(), want, "residual from the padded input");
   Conv2dParams strided = p;  // output smaller than x: no shortcut in x's layout
   strided.stride_y = strided.stride_x = 2;
   Tensor y2 = Tensor::empty(dev, {2, 12, 5, 6});
-  io1.x = nullptr;
   Tensor x1 = Tensor::empty(dev, x_shape(d1));
-  EXPECT_THROW(kernels::conv2d_padded(s, &x1, tw1, nullptr, &y2, strided, io1), InvalidArgument);
+  const kernels::Conv2dPlan strided_plan(dev, x_shape(d1), w_shape(d1, 1), strided);
+  EXPECT_NE(strided_plan.residual_misfit(xp), "");
+  EXPECT_THROW(
+      strided_plan.run(s, kernels::Planes::of(x1), tw1, nullptr, kernels::Planes::of(y2), &xp),
+      InvalidArgument);
 }
 
 // The separable residual chain the landmark net runs in inference, on random
@@ -461,10 +467,16 @@ TEST(Conv2d, SeparableChainThroughPaddedTensors) {
 
     Stream s(dev);
     const Shape ys = x_shape(d1), us = x_shape(d3);
-    const kernels::Conv2dPadded P = kernels::conv2d_padded_input(s, ys, {c, 1, 3, 3}, dw1);
-    const kernels::Conv2dPadded Q = kernels::conv2d_padded_input(s, ys, {c, 1, 3, 3}, dw2);
-    const kernels::Conv2dPadded R = kernels::conv2d_padded_input(s, us, {4, c, 3, 3}, p3);
-    ASSERT_TRUE(P.defined() && Q.defined() && R.defined());
+    const kernels::Conv2dPlan plan_pw0(dev, x_shape(d0), {c, d0.cin, 1, 1}, pw);
+    const kernels::Conv2dPlan plan_dw1(dev, ys, {c, 1, 3, 3}, dw1);
+    const kernels::Conv2dPlan plan_pw1(dev, ys, {c, c, 1, 1}, pw);
+    const kernels::Conv2dPlan plan_dw2(dev, ys, {c, 1, 3, 3}, dw2);
+    const kernels::Conv2dPlan plan3(dev, us, {4, c, 3, 3}, p3);
+    ASSERT_FALSE(plan_dw1.input_layout().plain() || plan_dw2.input_layout().plain() ||
+                 plan3.input_layout().plain());
+    const kernels::Planes P = kernels::Planes::make(s, ys, plan_dw1.input_layout());
+    const kernels::Planes Q = kernels::Planes::make(s, ys, plan_dw2.input_layout());
+    const kernels::Planes R = kernels::Planes::make(s, us, plan3.input_layout());
     Tensor x = Tensor::from(dev, x_shape(d0), xv);
     Tensor tw0 = Tensor::from(dev, {c, d0.cin, 1, 1}, w0), tb0 = Tensor::from(dev, {c}, b0);
     Tensor twd1 = Tensor::from(dev, {c, 1, 3, 3}, wd1);
@@ -473,19 +485,12 @@ TEST(Conv2d, SeparableChainThroughPaddedTensors) {
     Tensor tw3 = Tensor::from(dev, {4, c, 3, 3}, w3);
     Tensor tm = Tensor::empty(dev, ys);
     Tensor y = Tensor::empty(dev, Shape{d0.n, 4, d3.h, d3.w});
-    kernels::conv2d_into_padded(s, x, tw0, &tb0, P, pw);
-    kernels::Conv2dPaddedIo io;
-    io.x = &P;
-    kernels::conv2d_padded(s, nullptr, twd1, nullptr, &tm, dw1, io);
-    io = {};
-    io.y = &Q;
-    io.residual = &P;
-    kernels::conv2d_padded(s, &tm, tw1, &tb1, nullptr, pw, io);
-    io = {};
-    io.x = &Q;
-    io.y = &R;
-    kernels::conv2d_padded(s, nullptr, twd2, &tb2, nullptr, dw2, io);
-    kernels::conv2d_from_padded(s, R, tw3, nullptr, y, p3);
+    using kernels::Planes;
+    plan_pw0.run(s, Planes::of(x), tw0, &tb0, P);
+    plan_dw1.run(s, P, twd1, nullptr, Planes::of(tm));
+    plan_pw1.run(s, Planes::of(tm), tw1, &tb1, Q, &P);
+    plan_dw2.run(s, Q, twd2, &tb2, R);
+    plan3.run(s, R, tw3, nullptr, Planes::of(y));
     s.run();
     expect_close(y.download(), want, "separable chain through padded tensors");
   }
@@ -574,23 +579,25 @@ TEST(Conv2d, SamePaddingFollowsTensorFlow) {
 TEST(Conv2d, SelectsTheSpecializedVariants) {
   const Device& device = test::device();
   Conv2dParams p;
-  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 64, 1, 1}, p),
+  EXPECT_EQ(kernels::Conv2dPlan(device, {1, 64, 32, 32}, {64, 64, 1, 1}, p).algo(),
             Conv2dAlgo::pointwise);
   p.pad = {1, 1, 1, 1};
-  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 64, 3, 3}, p),
+  EXPECT_EQ(kernels::Conv2dPlan(device, {1, 64, 32, 32}, {64, 64, 3, 3}, p).algo(),
             Conv2dAlgo::blocked);
   p.groups = 64;
-  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 1, 3, 3}, p),
+  EXPECT_EQ(kernels::Conv2dPlan(device, {1, 64, 32, 32}, {64, 1, 3, 3}, p).algo(),
             Conv2dAlgo::depthwise);
   p.relu_input = true;
   p.groups = 64;
-  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 1, 3, 3}, p),
+  EXPECT_EQ(kernels::Conv2dPlan(device, {1, 64, 32, 32}, {64, 1, 3, 3}, p).algo(),
             Conv2dAlgo::depthwise);
   p.groups = 1;  // only the direct and depthwise variants take an input ReLU
-  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 64, 3, 3}, p), Conv2dAlgo::direct);
+  EXPECT_EQ(kernels::Conv2dPlan(device, {1, 64, 32, 32}, {64, 64, 3, 3}, p).algo(),
+            Conv2dAlgo::direct);
   p.relu_input = false;
   p.groups = 2;
-  EXPECT_EQ(kernels::conv2d_select(device, {1, 64, 32, 32}, {64, 32, 3, 3}, p), Conv2dAlgo::direct);
+  EXPECT_EQ(kernels::Conv2dPlan(device, {1, 64, 32, 32}, {64, 32, 3, 3}, p).algo(),
+            Conv2dAlgo::direct);
 }
 
 TEST(Conv2d, BadInputsAreClearErrors) {
@@ -615,10 +622,13 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   Tensor b_bad = Tensor::empty(dev, {7});
   expect_message([&] { kernels::conv2d(s, x, w, &b_bad, y, p); }, "bias");
   Tensor w_other = Tensor::empty(dev, {8, 4, 1, 1});
-  const kernels::Conv2dPackedWeight packed_other = kernels::conv2d_pack_weight(s, w_other);
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, &packed_other); }, "packed");
+  kernels::Conv2dPlan plan(dev, x.shape(), w.shape(), p);
+  expect_message([&] { plan.pack(s, w_other); }, "weight");
   Tensor w_3d = Tensor::empty(dev, {8, 4, 9});
-  expect_message([&] { kernels::conv2d_pack_weight(s, w_3d); }, "weight");
+  expect_message([&] { plan.pack(s, w_3d); }, "weight");
+  expect_message(
+      [&] { plan.run(s, kernels::Planes::of(x), w_other, nullptr, kernels::Planes::of(y)); },
+      "weight");
   Tensor empty = Tensor::empty(dev, {0, 4, 8, 8});
   expect_message([&] { kernels::conv2d(s, empty, w, nullptr, y, p); }, "empty");
   Conv2dParams g3 = p;
@@ -633,29 +643,37 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   Tensor big_w = Tensor::empty(dev, {8, 4, 11, 11});
   expect_message([&] { kernels::conv2d_output_shape(x.shape(), big_w.shape(), p); }, "exceeds");
   Tensor res_wide = Tensor::empty(dev, {1, 9, 6, 6});
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_wide); }, "residual");
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, &res_wide); }, "residual");
   Tensor res_small = Tensor::empty(dev, {1, 8, 5, 6});
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, nullptr, &res_small); }, "residual");
+  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, &res_small); }, "residual");
   Conv2dParams same = p;
   same.pad = {1, 1, 1, 1};
-  const kernels::Conv2dPadded xp = kernels::conv2d_padded_input(s, x.shape(), w.shape(), same);
-  expect_message([&] { kernels::conv2d_from_padded(s, xp, w, nullptr, y, p); }, "padded input");
-  expect_message([&] { kernels::conv2d_into_padded(s, x, w, nullptr, xp, p); }, "padded output");
+  using kernels::Planes;
+  const Planes xp = Planes::make(
+      s, x.shape(), kernels::Conv2dPlan(dev, x.shape(), w.shape(), same).input_layout());
+  ASSERT_TRUE(xp.padded());
+  // Padded for another convolution (p pads nothing: another geometry).
+  expect_message([&] { plan.run(s, xp, w, nullptr, Planes::of(y)); }, "padded input");
+  const Planes y_too_small{xp.data, y.shape(), xp.layout};  // 4 planes for y's 8
+  expect_message([&] { plan.run(s, Planes::of(x), w, nullptr, y_too_small); }, "padded output");
   Tensor w1x1 = Tensor::empty(dev, {8, 4, 1, 1});
   Tensor y8 = Tensor::empty(dev, {1, 8, 8, 8});
-  kernels::Conv2dPaddedIo io;
-  io.x = &xp;  // a 1×1 conv (pointwise) reads no padded input
-  expect_message([&] { kernels::conv2d_padded(s, nullptr, w1x1, nullptr, &y8, p, io); },
-                 "blocked or depthwise");
-  io = {};
-  io.residual = &xp;  // [1, 4, 8, 8]: fine; but for a y of 8 channels at 6×6, not
-  expect_message([&] { kernels::conv2d_padded(s, &x, w, nullptr, &y, p, io); }, "padded residual");
+  const kernels::Conv2dPlan pointwise(dev, x.shape(), w1x1.shape(), p);
+  ASSERT_EQ(pointwise.algo(), Conv2dAlgo::pointwise);
+  ASSERT_TRUE(pointwise.input_layout().plain());  // a 1×1 conv reads no padded input
+  expect_message([&] { pointwise.run(s, xp, w1x1, nullptr, Planes::of(y8)); }, "padded input");
+  // xp holds [1, 4, 8, 8]: no residual for a y of 8 channels at 6×6.
+  expect_message([&] { plan.run(s, Planes::of(x), w, nullptr, Planes::of(y), &xp); }, "residual");
   Tensor w_dw = Tensor::empty(dev, {4, 1, 3, 3});
   Tensor y_dw = Tensor::empty(dev, {1, 4, 8, 8});
   Conv2dParams dwp = same;
   dwp.groups = 4;  // a depthwise conv takes no padded residual
-  expect_message([&] { kernels::conv2d_padded(s, &x, w_dw, nullptr, &y_dw, dwp, io); },
-                 "blocked or pointwise");
+  const kernels::Conv2dPlan depthwise(dev, x.shape(), w_dw.shape(), dwp);
+  ASSERT_EQ(depthwise.algo(), Conv2dAlgo::depthwise);
+  expect_message([&] { depthwise.run(s, Planes::of(x), w_dw, nullptr, Planes::of(y_dw), &xp); },
+                 "plain residuals");
+  const kernels::Conv2dPlan empty_plan;
+  expect_message([&] { empty_plan.run(s, Planes::of(x), w, nullptr, Planes::of(y)); }, "empty");
   Conv2dParams relu_in = p;
   relu_in.relu_input = true;
   relu_in.algo = Conv2dAlgo::blocked;

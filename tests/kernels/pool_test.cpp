@@ -1,3 +1,4 @@
+#include <vkjr2/kernels/conv2d.hpp>
 #include <vkjr2/kernels/pool.hpp>
 #include <vkjr2/kernels/ref/pool_ref.hpp>
 
@@ -125,19 +126,21 @@ TEST(PoolKernels, MaxPoolMatchesReference) {
     kernels::Conv2dParams cp;
     cp.pad = kernels::same_padding(ys[2], ys[3], 3, 3, 1, 1);
     cp.algo = kernels::Conv2dAlgo::blocked;  // (one channel would run depthwise)
-    const kernels::Conv2dPadded yp = kernels::conv2d_padded_input(s, ys, Shape{8, ys[1], 3, 3}, cp);
-    ASSERT_TRUE(yp.defined());
+    const kernels::PlaneLayout yl =
+        kernels::Conv2dPlan(dev, ys, Shape{8, ys[1], 3, 3}, cp).input_layout();
+    ASSERT_FALSE(yl.plain());
+    const kernels::Planes yp = kernels::Planes::make(s, ys, yl);
     kernels::max_pool2d_into_padded(s, x, k.p, yp);
     s.run();
     EXPECT_EQ(y2.download(), r.y);
     const auto padded = yp.data.download();
     for (std::int64_t pl = 0; pl < ys[0] * ys[1]; ++pl) {
-      for (std::int64_t i = 0; i < std::int64_t(yp.hp); ++i) {
-        for (std::int64_t j = 0; j < std::int64_t(yp.wp); ++j) {
-          const std::int64_t oy = i - yp.top, ox = j - yp.left;
+      for (std::int64_t i = 0; i < std::int64_t(yl.hp); ++i) {
+        for (std::int64_t j = 0; j < std::int64_t(yl.wp); ++j) {
+          const std::int64_t oy = i - yl.top, ox = j - yl.left;
           const bool inside = oy >= 0 && oy < ys[2] && ox >= 0 && ox < ys[3];
           const float want = inside ? r.y[std::size_t((pl * ys[2] + oy) * ys[3] + ox)] : 0.f;
-          ASSERT_EQ(padded[std::size_t((pl * yp.hp + i) * yp.wp + j)], want)
+          ASSERT_EQ(padded[std::size_t((pl * yl.hp + i) * yl.wp + j)], want)
               << "padded plane " << pl << " at " << i << "," << j;
         }
       }
@@ -294,8 +297,8 @@ TEST(PoolKernels, BadInputsAreClearErrors) {
   EXPECT_THROW(kernels::max_pool2d(s, x, p, y, y), InvalidArgument);  // f32 indices
   kernels::Conv2dParams same;
   same.pad = {1, 1, 1, 1};
-  const kernels::Conv2dPadded for_8x8 =
-      kernels::conv2d_padded_input(s, x.shape(), {4, 2, 3, 3}, same);
+  const kernels::Planes for_8x8 = kernels::Planes::make(
+      s, x.shape(), kernels::Conv2dPlan(dev, x.shape(), {4, 2, 3, 3}, same).input_layout());
   try {  // a padded tensor of another shape
     kernels::max_pool2d_into_padded(s, x, p, for_8x8);
     FAIL();

@@ -186,14 +186,12 @@ TEST(ResizeKernels, IntoPaddedMatchesResizeThenAffine) {
           }
         }
       }
-      kernels::Conv2dPadded y;
+      kernels::Planes y;
       y.data =
           Tensor::from(dev, Shape{std::int64_t(want.size())}, std::vector<float>(want.size(), 7.f));
       y.shape = Shape{k.n, k.c, k.oh, k.ow};
-      y.hp = ic.hp;
-      y.wp = ic.wp;
-      y.top = ic.top;
-      y.left = ic.left;
+      y.layout = kernels::PlaneLayout{std::uint32_t(ic.hp), std::uint32_t(ic.wp),
+                                      std::int32_t(ic.top), std::int32_t(ic.left)};
       Tensor x = Tensor::from(dev, xs, xv),
              flag = Tensor::from(dev, Shape{1}, std::vector<float>{0.f});
       Tensor scale = Tensor::from(dev, Shape{k.c}, sv), shift = Tensor::from(dev, Shape{k.c}, bv);
@@ -297,12 +295,10 @@ TEST(ResizeKernels, BadInputsAreClearErrors) {
     EXPECT_NE(std::string(e.what()).find("at (3, 0)"), std::string::npos) << e.what();
   }
   {  // resize_into_padded: padded planes too small for y, scale of the wrong size
-    kernels::Conv2dPadded y;
+    kernels::Planes y;
     y.data = Tensor::empty(dev, {2 * 6 * 8});
     y.shape = Shape{1, 2, 6, 6};
-    y.hp = 6;
-    y.wp = 8;
-    y.top = 1;
+    y.layout = kernels::PlaneLayout{6, 8, 1, 0};
     Tensor sc = Tensor::empty(dev, {2}), sc3 = Tensor::empty(dev, {3});
     try {
       kernels::resize_into_padded(s, x, {8, 8, 0, 0}, ResizeMode::bilinear_legacy, sc, sc, y);
@@ -310,7 +306,7 @@ TEST(ResizeKernels, BadInputsAreClearErrors) {
     } catch (const InvalidArgument& e) {
       EXPECT_NE(std::string(e.what()).find("do not hold y"), std::string::npos) << e.what();
     }
-    y.top = 0;
+    y.layout.top = 0;
     try {
       kernels::resize_into_padded(s, x, {8, 8, 0, 0}, ResizeMode::bilinear_legacy, sc3, sc, y);
       FAIL();

@@ -89,7 +89,7 @@ TEST(NetsLayers, Conv2dPackedWeightFollowsOptimizerSteps) {
   p.pad = kernels::same_padding(9, 11, 3, 3, 1, 1);
   p.activation = kernels::Activation::relu;
   Conv2d conv(d, 16, 8, 3, 3, p, true, 7);
-  ASSERT_EQ(kernels::conv2d_select(d, Shape{1, 16, 9, 11}, conv.weight.shape(), p),
+  ASSERT_EQ(kernels::Conv2dPlan(d, Shape{1, 16, 9, 11}, conv.weight.shape(), p).algo(),
             kernels::Conv2dAlgo::blocked);
   Stream st(d);
   const Var x(Tensor::from(d, Shape{1, 16, 9, 11}, uniform_init(16 * 9 * 11, 1.f, 3)));

@@ -1,0 +1,136 @@
+#include <vkjr2/kernels/check.hpp>
+#include <vkjr2/kernels/conv2d.hpp>
+
+#include <string>
+
+#include "internal/conv2d_impl.hpp"
+
+namespace vkjr2::kernels {
+namespace {
+
+using namespace detail;
+
+const KernelDef kBwdData{"conv2d_bwd_data",
+                         {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                         sizeof(ConvPush)};
+const KernelDef kBwdWeight{"conv2d_bwd_weight",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                           sizeof(ConvPush)};
+const KernelDef kBwdWeightBlocked{"conv2d_bwd_weight_blocked",
+                                  {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                                  sizeof(ConvPush)};
+const KernelDef kBwdBias{
+    "conv2d_bwd_bias", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
+
+}  // namespace
+
+void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
+                          const Conv2dParams& p) {
+  const char* op = "conv2d_backward_data";
+  refuse_relu_input(op, p);
+  require_f32_rank(dx, 4, op, "dx");
+  require_f32_rank(weight, 4, op, "weight");
+  const Dims d = dims_of(op, dx.shape(), weight.shape(), p);
+  require_f32(dy, op, "dy");
+  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+
+  // Stride 1, groups 1: dX = conv(dY, W'), W'[ci][co] = W[co][ci] flipped in
+  // both axes, padding (K−1)·d − pad (may be negative: the pad pass crops).
+  Conv2dParams tp;
+  tp.dilation_y = p.dilation_y;
+  tp.dilation_x = p.dilation_x;
+  const bool transposable =
+      p.groups == 1 && p.stride_y == 1 && p.stride_x == 1 && small_kernel(d, tp);
+  const bool use_blocked =
+      p.algo == Conv2dAlgo::blocked || (p.algo == Conv2dAlgo::auto_select && transposable);
+  if (p.algo != Conv2dAlgo::auto_select && p.algo != Conv2dAlgo::direct &&
+      !(p.algo == Conv2dAlgo::blocked && transposable)) {
+    throw InvalidArgument(
+        op, std::string("variant ") + conv2d_algo_name(p.algo) + " cannot run this backward-data",
+        "use auto_select or direct (blocked needs stride 1 and groups 1)");
+  }
+  if (use_blocked) {
+    ConvPush c{};
+    c.n = std::uint32_t(d.n);
+    c.cin = std::uint32_t(d.cout);
+    c.h = std::uint32_t(d.hout);
+    c.w = std::uint32_t(d.wout);
+    c.cout = std::uint32_t(d.cin);
+    c.hout = std::uint32_t(d.h);
+    c.wout = std::uint32_t(d.w);
+    c.kh = std::uint32_t(d.kh);
+    c.kw = std::uint32_t(d.kw);
+    c.sy = c.sx = 1;
+    c.dy = std::uint32_t(p.dilation_y);
+    c.dx = std::uint32_t(p.dilation_x);
+    c.pt = std::int32_t((d.kh - 1) * p.dilation_y - p.pad.top);
+    c.pl = std::int32_t((d.kw - 1) * p.dilation_x - p.pad.left);
+    c.groups = 1;
+    c.cin_g = c.cin;
+    c.cout_g = c.cout;
+    c.yh = c.hout;
+    c.yw = c.wout;
+    const std::string why =
+        padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp,
+                        Conv2dAlgo::blocked,
+                        stream.device().traits()) > stream.device().info().max_texel_buffer_elements
+            ? "the padded input exceeds the texel limit"
+            : "";
+    if (why.empty()) {
+      run_forward(stream, Conv2dAlgo::blocked, dy, weight, nullptr, dx, c, true);
+      return;
+    }
+    if (p.algo == Conv2dAlgo::blocked) throw InvalidArgument(op, why, "use auto_select");
+  }
+  const ConvPush c = push_of(d, p);
+  const std::uint64_t n = std::uint64_t(d.n) * d.cin * d.h * d.w;
+  stream.dispatch(kBwdData, {texel(dy), texel(weight), out(dx)}, c,
+                  groups_1d(div_up(n, 256), stream.device().info()));
+}
+
+void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
+                            const Tensor& dweight, const Tensor* dbias, const Conv2dParams& p) {
+  const char* op = "conv2d_backward_weight";
+  refuse_relu_input(op, p);
+  require_f32_rank(x, 4, op, "x");
+  require_f32_rank(dweight, 4, op, "dweight");
+  const Dims d = dims_of(op, x.shape(), dweight.shape(), p);
+  require_f32(dy, op, "dy");
+  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+  if (dbias != nullptr) {
+    require_f32(*dbias, op, "dbias");
+    require_shape(*dbias, Shape{d.cout}, op, "dbias");
+  }
+  const DeviceInfo& info = stream.device().info();
+  ConvPush c = push_of(d, p);
+  // groups == 1: the blocked kernel over zero-padded x and dy; else (or when
+  // p.algo == direct) one dw element per invocation.
+  const bool blocked =
+      p.algo != Conv2dAlgo::direct && why_not(Conv2dAlgo::blocked, stream.device(), d, p).empty();
+  if (blocked) {
+    set_padded(c);
+    const Tensor xp = pad_input(stream, x, c);
+    ConvPush dc = c;  // dy [n, cout, hout, wout] → [n, cout, hout, wblocks·8]
+    dc.cin = c.cout;
+    dc.h = dc.hp = c.hout;
+    dc.w = c.wout;
+    dc.wp = c.wblocks * kPx;
+    dc.pt = dc.pl = 0;
+    const Tensor dyp = pad_input(stream, dy, dc);
+    stream.dispatch(
+        kBwdWeightBlocked,
+        {texel(xp, VK_FORMAT_R32G32B32A32_SFLOAT), texel(dyp, VK_FORMAT_R32G32B32A32_SFLOAT),
+         out(dweight)},
+        c, Groups{div_up(std::uint64_t(c.cin) * c.kh, kBlockedGroup), div_up(c.cout, kCoBlock), 1},
+        {c.kw, c.sx, c.dx});
+  } else {
+    stream.dispatch(kBwdWeight, {texel(x), texel(dy), out(dweight)}, c,
+                    groups_1d(div_up(std::uint64_t(dweight.numel()), 64), info));
+  }
+  if (dbias != nullptr) {
+    require_subgroup_arithmetic(stream, op);
+    stream.dispatch(kBwdBias, {texel(dy), out(*dbias)}, c, groups_1d(d.cout, info));
+  }
+}
+
+}  // namespace vkjr2::kernels
