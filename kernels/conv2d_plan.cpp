@@ -343,7 +343,7 @@ std::string Conv2dPlan::residual_misfit(const Planes& r) const {
     if (!(r.data.shape() == rs)) return "the plain residual's data is not " + rs.str();
     return {};
   }
-  const std::string misfit = layout_misfit(rs, r.layout);
+  std::string misfit = layout_misfit(rs, r.layout);
   if (!misfit.empty()) return misfit;
   if (r.data.numel() != planes * std::int64_t(r.layout.hp) * std::int64_t(r.layout.wp)) {
     return "the padded residual's data " + r.data.shape().str() + " is not " + str(planes) +
