@@ -22,17 +22,25 @@ const KernelDef kBwdWeightBlocked{"conv2d_bwd_weight_blocked",
 const KernelDef kBwdBias{
     "conv2d_bwd_bias", {BindingKind::texel, BindingKind::storage}, sizeof(ConvPush)};
 
+// The checks both backward passes make: the input-shaped tensor (x or dx)
+// and the weight-shaped one against p, dy of the output's shape.
+Dims backward_dims(const char* op, const Tensor& in, const char* in_name, const Tensor& weight,
+                   const char* weight_name, const Tensor& dy, const Conv2dParams& p) {
+  refuse_relu_input(op, p);
+  require_f32_rank(in, 4, op, in_name);
+  require_f32_rank(weight, 4, op, weight_name);
+  const Dims d = dims_of(op, in.shape(), weight.shape(), p);
+  require_f32(dy, op, "dy");
+  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+  return d;
+}
+
 }  // namespace
 
 void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight, const Tensor& dx,
                           const Conv2dParams& p) {
   const char* op = "conv2d_backward_data";
-  refuse_relu_input(op, p);
-  require_f32_rank(dx, 4, op, "dx");
-  require_f32_rank(weight, 4, op, "weight");
-  const Dims d = dims_of(op, dx.shape(), weight.shape(), p);
-  require_f32(dy, op, "dy");
-  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+  const Dims d = backward_dims(op, dx, "dx", weight, "weight", dy, p);
 
   // Stride 1, groups 1: dX = conv(dY, W'), W'[ci][co] = W[co][ci] flipped in
   // both axes, padding (K−1)·d − pad (may be negative: the pad pass crops).
@@ -50,32 +58,15 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
         "use auto_select or direct (blocked needs stride 1 and groups 1)");
   }
   if (use_blocked) {
-    ConvPush c{};
-    c.n = std::uint32_t(d.n);
-    c.cin = std::uint32_t(d.cout);
-    c.h = std::uint32_t(d.hout);
-    c.w = std::uint32_t(d.wout);
-    c.cout = std::uint32_t(d.cin);
-    c.hout = std::uint32_t(d.h);
-    c.wout = std::uint32_t(d.w);
-    c.kh = std::uint32_t(d.kh);
-    c.kw = std::uint32_t(d.kw);
-    c.sy = c.sx = 1;
-    c.dy = std::uint32_t(p.dilation_y);
-    c.dx = std::uint32_t(p.dilation_x);
-    c.pt = std::int32_t((d.kh - 1) * p.dilation_y - p.pad.top);
-    c.pl = std::int32_t((d.kw - 1) * p.dilation_x - p.pad.left);
-    c.groups = 1;
-    c.cin_g = c.cin;
-    c.cout_g = c.cout;
-    c.yh = c.hout;
-    c.yw = c.wout;
-    const std::string why =
-        padded_elements(Dims{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w}, tp,
-                        Conv2dAlgo::blocked,
-                        stream.device().traits()) > stream.device().info().max_texel_buffer_elements
-            ? "the padded input exceeds the texel limit"
-            : "";
+    // The forward conv of dY [N, Cout, Hout, Wout] into dX [N, Cin, H, W].
+    const Dims td{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w};
+    tp.pad.top = int((d.kh - 1) * p.dilation_y - p.pad.top);
+    tp.pad.left = int((d.kw - 1) * p.dilation_x - p.pad.left);
+    const ConvPush c = push_of(td, tp);
+    const std::string why = padded_elements(td, tp, Conv2dAlgo::blocked, stream.device().traits()) >
+                                    stream.device().info().max_texel_buffer_elements
+                                ? "the padded input exceeds the texel limit"
+                                : "";
     if (why.empty()) {
       run_forward(stream, Conv2dAlgo::blocked, dy, weight, nullptr, dx, c, true);
       return;
@@ -91,12 +82,7 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
 void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
                             const Tensor& dweight, const Tensor* dbias, const Conv2dParams& p) {
   const char* op = "conv2d_backward_weight";
-  refuse_relu_input(op, p);
-  require_f32_rank(x, 4, op, "x");
-  require_f32_rank(dweight, 4, op, "dweight");
-  const Dims d = dims_of(op, x.shape(), dweight.shape(), p);
-  require_f32(dy, op, "dy");
-  require_shape(dy, Shape{d.n, d.cout, d.hout, d.wout}, op, "dy");
+  const Dims d = backward_dims(op, x, "x", dweight, "dweight", dy, p);
   if (dbias != nullptr) {
     require_f32(*dbias, op, "dbias");
     require_shape(*dbias, Shape{d.cout}, op, "dbias");
