@@ -7,32 +7,29 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
 namespace {
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-5,
-                  double atol = 1e-6) {
-  test::expect_all_near(got, want, rtol, atol);
+// Edge shapes first (one element, one past a workgroup), then random ones.
+Shape draw_shape(test::OpCase& c) {
+  if (c.index == 0) return {1};
+  if (c.index == 1) return {1025};
+  return {c.uniform(1, 3), c.uniform(1, 6), c.uniform(1, 40), c.uniform(1, 40)};
 }
 
-const std::vector<Shape> kShapes = {{1}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31}, {1025}};
-
 TEST(ActivationKernels, ForwardAndBackwardMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 21;
-  for (const Shape& shape : kShapes) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
-    const auto n = std::size_t(shape.numel());
-    const auto xv = test::random_floats(n, seed, -4.f, 4.f);
-    const auto dyv = test::random_floats(n, seed + 1);
-    Tensor x = Tensor::from(dev, shape, xv), dy = Tensor::from(dev, shape, dyv);
+  test::check_op("activations", {.seed = 21}, [](test::OpCase& c) {
+    const Shape shape = draw_shape(c);
+    c.describe("x " + shape.str());
+    const auto xv = c.floats(shape.numel(), -4.f, 4.f), dyv = c.floats(shape.numel());
+    Tensor x = c.tensor(shape, xv), dy = c.tensor(shape, dyv);
     std::vector<Tensor> t;
-    for (int i = 0; i < 8; ++i) t.push_back(Tensor::empty(dev, shape));
-    Stream s(dev);
+    for (int i = 0; i < 8; ++i) t.push_back(c.empty(shape));
+    Stream s(c.device);
     kernels::relu(s, x, t[0]);
     kernels::relu_backward(s, x, dy, t[1]);
     kernels::leaky_relu(s, x, 0.1f, t[2]);
@@ -43,41 +40,42 @@ TEST(ActivationKernels, ForwardAndBackwardMatchReference) {
     kernels::tanh_activation_backward(s, t[6], dy, t[7]);
     s.run();
     using ref::Unary;
-    expect_close(t[0].download(), ref::unary(Unary::relu, xv));
-    expect_close(t[1].download(), ref::unary_backward(Unary::relu, xv, dyv));
-    expect_close(t[2].download(), ref::unary(Unary::leaky_relu, xv, 0.1f));
-    expect_close(t[3].download(), ref::unary_backward(Unary::leaky_relu, xv, dyv, 0.1f));
+    c.expect("relu", t[0], ref::unary(Unary::relu, xv));
+    c.expect("relu backward", t[1], ref::unary_backward(Unary::relu, xv, dyv));
+    c.expect("leaky_relu", t[2], ref::unary(Unary::leaky_relu, xv, 0.1f));
+    c.expect("leaky_relu backward", t[3], ref::unary_backward(Unary::leaky_relu, xv, dyv, 0.1f));
     const auto sy = ref::unary(Unary::sigmoid, xv), ty = ref::unary(Unary::tanh, xv);
-    expect_close(t[4].download(), sy, 1e-5, 1e-6);
-    expect_close(t[5].download(), ref::unary_backward(Unary::sigmoid, sy, dyv), 1e-4, 1e-6);
-    expect_close(t[6].download(), ty, 1e-5, 1e-6);
-    expect_close(t[7].download(), ref::unary_backward(Unary::tanh, ty, dyv), 1e-4, 1e-6);
-  }
+    c.expect("sigmoid", t[4], sy);
+    c.expect("sigmoid backward", t[5], ref::unary_backward(Unary::sigmoid, sy, dyv), {1e-4, 1e-6});
+    c.expect("tanh", t[6], ty);
+    c.expect("tanh backward", t[7], ref::unary_backward(Unary::tanh, ty, dyv), {1e-4, 1e-6});
+  });
 }
 
 TEST(ActivationKernels, PreluMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 22;
-  for (const Shape& shape : {Shape{2, 3, 1, 1}, Shape{2, 5, 17, 9}, Shape{3, 7}}) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
+  test::check_op("prelu", {.seed = 22, .cases = 6}, [](test::OpCase& c) {
+    const Shape shape =
+        c.index == 0 ? Shape{3, 7}
+                     : Shape{c.uniform(1, 3), c.uniform(1, 6), c.uniform(1, 20), c.uniform(1, 20)};
+    c.describe("x " + shape.str());
     const auto n = std::size_t(shape.numel());
-    const auto c = std::uint32_t(shape[1]);
-    const std::uint32_t hw = std::uint32_t(n / std::size_t(shape[0]) / c);
-    const auto xv = test::random_floats(n, seed), dyv = test::random_floats(n, seed + 1);
-    const auto sv = test::random_floats(c, seed + 2, 0.f, 0.5f);
-    Tensor x = Tensor::from(dev, shape, xv), dy = Tensor::from(dev, shape, dyv);
-    Tensor sl = Tensor::from(dev, {c}, sv), y = Tensor::empty(dev, shape);
-    Tensor dx = Tensor::empty(dev, shape), ds = Tensor::empty(dev, {c});
-    Stream s(dev);
+    const auto ch = std::uint32_t(shape[1]);
+    const std::uint32_t hw = std::uint32_t(n / std::size_t(shape[0]) / ch);
+    const auto xv = c.floats(shape.numel()), dyv = c.floats(shape.numel());
+    const auto sv = c.floats(ch, 0.f, 0.5f);
+    Tensor x = c.tensor(shape, xv), dy = c.tensor(shape, dyv);
+    Tensor sl = c.tensor({ch}, sv), y = c.empty(shape);
+    Tensor dx = c.empty(shape), ds = c.empty({ch});
+    Stream s(c.device);
     kernels::prelu(s, x, sl, y);
     kernels::prelu_backward(s, x, sl, dy, &dx, &ds);
     s.run();
     std::vector<float> rdx, rds;
-    ref::prelu_backward(xv, sv, dyv, c, hw, rdx, rds);
-    expect_close(y.download(), ref::prelu(xv, sv, c, hw));
-    expect_close(dx.download(), rdx);
-    expect_close(ds.download(), rds, 1e-4, 1e-5);
-  }
+    ref::prelu_backward(xv, sv, dyv, ch, hw, rdx, rds);
+    c.expect("prelu", y, ref::prelu(xv, sv, ch, hw));
+    c.expect("prelu dx", dx, rdx);
+    c.expect("prelu dslope", ds, rds, {1e-4, 1e-5});
+  });
 }
 
 TEST(ActivationKernels, GradientsMatchFiniteDifferences) {

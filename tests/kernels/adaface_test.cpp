@@ -10,8 +10,8 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -49,7 +49,7 @@ TEST(AdaFaceKernels, ScalerMatchesReferenceAndUpdatesOnlyWhenAsked) {
       kernels::adaface_scaler(s, n, mu, sigma, update, p, z);
       s.run();
       const auto want = ref::adaface_scaler(norms, mean, std_dev, update, p);
-      test::expect_all_near(z.download(), want, 1e-4, 1e-5);
+      test::expect_all_close("z", z.download(), want, {1e-4, 1e-5});
       EXPECT_NEAR(mu.download()[0], mean, 1e-5 * mean);
       EXPECT_NEAR(sigma.download()[0], std_dev, 1e-5 * std_dev);
       if (!update) {
@@ -102,11 +102,11 @@ TEST(AdaFaceKernels, MarginMatchesReference) {
     kernels::adaface_margin_backward(s, c, lab, z, dy, p, dc);
     s.run();
     // Logits are scaled by s = 64: absolute tolerance in those units.
-    test::expect_all_near(logits.download(),
-                          ref::adaface_margin(cv, lv, zv, std::size_t(classes), p), 1e-4, 1e-4);
-    test::expect_all_near(dc.download(),
-                          ref::adaface_margin_backward(cv, lv, zv, dyv, std::size_t(classes), p),
-                          1e-4, 1e-4);
+    test::expect_all_close("logits", logits.download(),
+                           ref::adaface_margin(cv, lv, zv, std::size_t(classes), p), {1e-4, 1e-4});
+    test::expect_all_close("dc", dc.download(),
+                           ref::adaface_margin_backward(cv, lv, zv, dyv, std::size_t(classes), p),
+                           {1e-4, 1e-4});
   }
 }
 

@@ -14,6 +14,7 @@
 #include <string>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -56,14 +57,12 @@ bool valid(const Case& c) {
 // reference stays fast: channels 1..64 (incl. not multiples of 8), odd and even
 // sizes incl. 1×1, kernels 1/3/5/7, stride 1/2, dilation 1/2, asymmetric
 // padding, dense/grouped/depthwise, every activation.
-std::vector<Case> random_cases(std::uint32_t seed, int count) {
-  std::mt19937 rng(seed);
+Case random_case(std::mt19937& rng) {
   auto pick = [&](std::initializer_list<int> v) {
     return *(v.begin() + std::uniform_int_distribution<int>(0, int(v.size()) - 1)(rng));
   };
   auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
-  std::vector<Case> cases;
-  while (int(cases.size()) < count) {
+  while (true) {
     Case c;
     c.d.n = pick({1, 2});
     c.d.cin = pick({1, 3, 8, 16, 32, 64});
@@ -92,9 +91,8 @@ std::vector<Case> random_cases(std::uint32_t seed, int count) {
                               ref::conv2d_out_w(c.d, c.p) * (c.d.cin / c.p.groups) * c.d.kh *
                               c.d.kw;
     if (macs > 4'000'000) continue;
-    cases.push_back(c);
+    return c;
   }
-  return cases;
 }
 
 // Hand-picked edges: pointwise with h·w not a multiple of 8, 1×1 images, TF
@@ -188,13 +186,13 @@ std::vector<Case> edge_cases() {
   return cases;
 }
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want,
-                  const std::string& what) {
-  ASSERT_EQ(got.size(), want.size()) << what;
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_NEAR(got[i], want[i], 1e-4 * (1.0 + std::fabs(want[i])))
-        << what << " at element " << i << " of " << got.size();
-  }
+// Every output: |got − want| ≤ 1e-4·(1 + |want|).
+constexpr test::Tol kTol{1e-4, 1e-4};
+
+// The hand-picked edges first, then random convolutions.
+Case draw_case(test::OpCase& c, const std::vector<Case>& edges) {
+  if (c.index < int(edges.size())) return edges[std::size_t(c.index)];
+  return random_case(c.rng());
 }
 
 // The variants that can run a case (direct always can).
@@ -213,21 +211,21 @@ std::vector<Conv2dAlgo> runnable(const Device& dev, const Case& c) {
   return algos;
 }
 
-void check_forward(const Case& c, std::uint32_t seed) {
-  Device& dev = test::device();
-  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+void check_forward(test::OpCase& t, const Case& c) {
+  Device& dev = t.device;
+  t.describe(describe(c));
   const Shape ws = w_shape(c.d, c.p.groups);
-  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
-  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
-  const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
+  const auto xs = t.floats(x_shape(c.d).numel());
+  const auto wv = t.floats(ws.numel());
+  const auto bv = t.floats(c.d.cout);
   const auto want = ref::conv2d(xs, wv, bv, c.d, c.p);
   const auto want_nobias = ref::conv2d(xs, wv, {}, c.d, c.p);
   // A residual with all of y's channels or (every other case) fewer: the channels
   // past it get none, as in a shortcut zero-padded in channels.
-  const std::int64_t cres = (seed / 10) % 2 == 0 ? c.d.cout : (c.d.cout + 1) / 2;
+  const std::int64_t cres = t.index % 2 == 0 ? c.d.cout : (c.d.cout + 1) / 2;
   Shape rs = y_shape(c);
   rs = Shape{rs[0], cres, rs[2], rs[3]};
-  const auto rv = test::random_floats(std::size_t(rs.numel()), seed + 4);
+  const auto rv = t.floats(rs.numel());
   const auto want_res = ref::conv2d(xs, wv, bv, c.d, c.p, rv, cres);
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
   Tensor w = Tensor::from(dev, ws, wv);
@@ -244,7 +242,7 @@ void check_forward(const Case& c, std::uint32_t seed) {
     Stream s(dev);
     // NaN first: pooled memory may still hold another variant's right answer,
     // which would hide outputs a variant never writes.
-    for (const Tensor* t : {&y, &y2, &y3, &y4}) s.fill(*t, std::numeric_limits<float>::quiet_NaN());
+    for (const Tensor* o : {&y, &y2, &y3, &y4}) s.fill(*o, std::numeric_limits<float>::quiet_NaN());
     kernels::conv2d(s, x, w, &b, y, p);
     kernels::conv2d(s, x, w, nullptr, y2, p);
     // A plan made once, its weights packed ahead of the calls (what layers do).
@@ -255,24 +253,22 @@ void check_forward(const Case& c, std::uint32_t seed) {
     plan.run(s, kernels::Planes::of(x), w, &b, kernels::Planes::of(y3));
     plan.run(s, kernels::Planes::of(x), w, &b, kernels::Planes::of(y4), &rp);
     s.run();
-    expect_close(y.download(), want, std::string("forward ") + kernels::conv2d_algo_name(a));
-    expect_close(y2.download(), want_nobias,
-                 std::string("forward without bias ") + kernels::conv2d_algo_name(a));
-    expect_close(y3.download(), want,
-                 std::string("forward, packed weight ") + kernels::conv2d_algo_name(a));
-    expect_close(y4.download(), want_res,
-                 std::string("forward with a residual of ") + std::to_string(cres) + " channels " +
-                     kernels::conv2d_algo_name(a));
+    const std::string algo = kernels::conv2d_algo_name(a);
+    t.expect("forward " + algo, y, want, kTol);
+    t.expect("forward without bias " + algo, y2, want_nobias, kTol);
+    t.expect("forward, packed weight " + algo, y3, want, kTol);
+    t.expect("forward with a residual of " + std::to_string(cres) + " channels " + algo, y4,
+             want_res, kTol);
   }
 }
 
-void check_backward(const Case& c, std::uint32_t seed) {
-  Device& dev = test::device();
-  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
+void check_backward(test::OpCase& t, const Case& c) {
+  Device& dev = t.device;
+  t.describe(describe(c));
   const Shape ws = w_shape(c.d, c.p.groups);
-  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
-  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
-  const auto dys = test::random_floats(std::size_t(y_shape(c).numel()), seed + 3);
+  const auto xs = t.floats(x_shape(c.d).numel());
+  const auto wv = t.floats(ws.numel());
+  const auto dys = t.floats(y_shape(c).numel());
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
   Tensor w = Tensor::from(dev, ws, wv);
   Tensor dy = Tensor::from(dev, y_shape(c), dys);
@@ -292,36 +288,34 @@ void check_backward(const Case& c, std::uint32_t seed) {
   kernels::conv2d_backward_weight(s, x, dy, dw_direct, nullptr, p);
   s.run();
   const auto want_dx = ref::conv2d_backward_data(dys, wv, c.d, p);
-  expect_close(dx_auto.download(), want_dx, "backward data (auto)");
-  expect_close(dx_direct.download(), want_dx, "backward data (direct)");
+  t.expect("backward data (auto)", dx_auto, want_dx, kTol);
+  t.expect("backward data (direct)", dx_direct, want_dx, kTol);
   const auto want_dw = ref::conv2d_backward_weight(xs, dys, c.d, p);
-  expect_close(dw.download(), want_dw, "backward weight (auto)");
-  expect_close(dw_direct.download(), want_dw, "backward weight (direct)");
-  expect_close(db.download(), ref::conv2d_backward_bias(dys, c.d, p), "backward bias");
+  t.expect("backward weight (auto)", dw, want_dw, kTol);
+  t.expect("backward weight (direct)", dw_direct, want_dw, kTol);
+  t.expect("backward bias", db, ref::conv2d_backward_bias(dys, c.d, p), kTol);
 }
 
 TEST(Conv2d, ForwardMatchesReferenceEveryVariant) {
-  const std::uint32_t seed = 2024;
-  int k = 0;
-  for (const Case& c : random_cases(seed, 28)) check_forward(c, seed + 10 * std::uint32_t(k++));
-  for (const Case& c : edge_cases()) check_forward(c, seed + 10 * std::uint32_t(k++));
+  const std::vector<Case> edges = edge_cases();
+  test::check_op("conv2d", {.seed = 2024, .cases = int(edges.size()) + 28},
+                 [&](test::OpCase& t) { check_forward(t, draw_case(t, edges)); });
 }
 
 TEST(Conv2d, BackwardMatchesReference) {
-  const std::uint32_t seed = 77;
-  int k = 0;
-  for (const Case& c : random_cases(seed, 16)) check_backward(c, seed + 10 * std::uint32_t(k++));
-  for (const Case& c : edge_cases()) check_backward(c, seed + 10 * std::uint32_t(k++));
+  const std::vector<Case> edges = edge_cases();
+  test::check_op("conv2d backward", {.seed = 77, .cases = int(edges.size()) + 16},
+                 [&](test::OpCase& t) { check_backward(t, draw_case(t, edges)); });
 }
 
 // A blocked conv writing straight into the zero-padded input of the next
 // one (planes in the consumer's Conv2dPlan::input_layout), which reads it
 // with no padding pass: the two match the reference chained on the host.
-void check_padded_chain(const Case& c, std::uint32_t seed) {
-  Device& dev = test::device();
-  SCOPED_TRACE(describe(c) + " seed " + std::to_string(seed));
-  std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
+// Returns whether the pair could be chained (a 'same' consumer reads plain input).
+bool check_padded_chain(test::OpCase& t, const Case& c) {
+  Device& dev = t.device;
+  t.describe(describe(c));
+  auto uni = [&](int lo, int hi) { return t.uniform(lo, hi); };
   const Shape ys = y_shape(c);
   ref::Conv2dDims d2{ys[0], ys[1], ys[2], ys[3], std::int64_t(uni(1, 20)), 3, 3};
   Conv2dParams p2;
@@ -330,22 +324,22 @@ void check_padded_chain(const Case& c, std::uint32_t seed) {
   p2.pad = {uni(0, 2), uni(0, 2), uni(0, 2), uni(0, 2)};
   p2.activation = Activation::relu;
   const Case c2{d2, p2};
-  if (!valid(c2)) return;
+  if (!valid(c2)) return false;
   Conv2dParams p1 = c.p;
   p1.algo = Conv2dAlgo::blocked;
   const Shape ws = w_shape(c.d, 1), ws2 = w_shape(d2, 1);
-  const auto xs = test::random_floats(std::size_t(x_shape(c.d).numel()), seed);
-  const auto wv = test::random_floats(std::size_t(ws.numel()), seed + 1);
-  const auto bv = test::random_floats(std::size_t(c.d.cout), seed + 2);
-  const auto wv2 = test::random_floats(std::size_t(ws2.numel()), seed + 3);
-  const auto rv = test::random_floats(std::size_t(y_shape(c2).numel()), seed + 4);
+  const auto xs = t.floats(x_shape(c.d).numel());
+  const auto wv = t.floats(ws.numel());
+  const auto bv = t.floats(c.d.cout);
+  const auto wv2 = t.floats(ws2.numel());
+  const auto rv = t.floats(y_shape(c2).numel());
   const auto mid = ref::conv2d(xs, wv, bv, c.d, c.p);
   const auto want = ref::conv2d(mid, wv2, {}, d2, p2, rv, d2.cout);
   Stream s(dev);
   const kernels::Conv2dPlan plan2(dev, ys, ws2, p2);
   if (plan2.input_layout().plain()) {  // the consumer reads x plain (not blocked or depthwise)
     EXPECT_NE(plan2.algo(), Conv2dAlgo::blocked);
-    return;
+    return false;
   }
   const kernels::Planes xp = kernels::Planes::make(s, ys, plan2.input_layout());
   Tensor x = Tensor::from(dev, x_shape(c.d), xs);
@@ -358,17 +352,18 @@ void check_padded_chain(const Case& c, std::uint32_t seed) {
   kernels::Conv2dPlan(dev, x.shape(), ws, p1).run(s, kernels::Planes::of(x), w, &b, xp);
   plan2.run(s, xp, w2, nullptr, kernels::Planes::of(y), &rp);
   s.run();
-  expect_close(y.download(), want, "conv into padded, conv from padded");
+  t.expect("conv into padded, conv from padded", y, want, kTol);
+  return true;
 }
 
 TEST(Conv2d, ChainsThroughPaddedTensors) {
-  const std::uint32_t seed = 404;
-  int k = 0, checked = 0;
-  for (Case c : random_cases(seed, 40)) {
-    if (c.p.groups != 1 || c.d.kh > 7 || c.d.kw > 7) continue;
-    check_padded_chain(c, seed + 10 * std::uint32_t(k++));
-    ++checked;
-  }
+  int checked = 0;
+  test::check_op("conv2d into padded planes", {.seed = 404, .cases = 40, .cases_on_every_path = 2},
+                 [&](test::OpCase& t) {
+                   const Case c = random_case(t.rng());
+                   if (c.p.groups != 1) return;
+                   checked += check_padded_chain(t, c) ? 1 : 0;
+                 });
   EXPECT_GE(checked, 10);
 }
 
@@ -401,7 +396,7 @@ TEST(Conv2d, ResidualInThePaddedInputLayout) {
   EXPECT_EQ(plan1.residual_misfit(xp), "");
   plan1.run(s, xp, tw1, &tb1, kernels::Planes::of(y), &xp);
   s.run();
-  expect_close(y.download(), want, "residual from the padded input");
+  test::expect_all_close("residual from the padded input", y.download(), want, kTol);
   Conv2dParams strided = p;  // output smaller than x: no shortcut in x's layout
   strided.stride_y = strided.stride_x = 2;
   Tensor y2 = Tensor::empty(dev, {2, 12, 5, 6});
@@ -492,7 +487,7 @@ TEST(Conv2d, SeparableChainThroughPaddedTensors) {
     plan_dw2.run(s, Q, twd2, &tb2, R);
     plan3.run(s, R, tw3, nullptr, Planes::of(y));
     s.run();
-    expect_close(y.download(), want, "separable chain through padded tensors");
+    test::expect_all_close("separable chain through padded tensors", y.download(), want, kTol);
   }
 }
 

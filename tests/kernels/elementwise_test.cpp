@@ -7,109 +7,108 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
 namespace {
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-5,
-                  double atol = 1e-6) {
-  test::expect_all_near(got, want, rtol, atol);
+// Edge shapes: odd, not dividing the 1024-element group, 1×1 images, rank
+// 1..4; multiples of 4 (the vec4 binary path) with a partial last group
+// (4092, 4100) and exact groups (2×4096). Then random ones.
+const std::vector<Shape> kEdges = {
+    {1}, {7}, {3, 5}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31}, {1025}, {4100}, {2, 4096}};
+constexpr test::OpCheck kCheck{.cases = 13};
+
+Shape draw_shape(test::OpCase& c) {
+  return c.edge_or(kEdges, [&] { return c.nchw(3, 6, 40, 40); });
 }
 
-// Shapes: odd, not dividing the 1024-element group, 1×1 images, rank 1..4;
-// multiples of 4 (the vec4 binary path) with a partial last group (4092,
-// 4100) and exact groups (2×4096).
-const std::vector<Shape> kShapes = {
-    {1}, {7}, {3, 5}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31}, {1025}, {4100}, {2, 4096}};
-
 TEST(ElementwiseKernels, BinaryMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 11;
-  for (const Shape& shape : kShapes) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
-    const auto n = std::size_t(shape.numel());
-    const auto av = test::random_floats(n, seed), bv = test::random_floats(n, seed + 1);
-    Tensor a = Tensor::from(dev, shape, av), b = Tensor::from(dev, shape, bv);
-    Tensor o[3] = {Tensor::empty(dev, shape), Tensor::empty(dev, shape), Tensor::empty(dev, shape)};
-    Stream s(dev);
+  auto check = kCheck;
+  check.seed = 11;
+  test::check_op("add/sub/mul", check, [](test::OpCase& c) {
+    const Shape shape = draw_shape(c);
+    c.describe("a, b " + shape.str());
+    const auto av = c.floats(shape.numel()), bv = c.floats(shape.numel());
+    Tensor a = c.tensor(shape, av), b = c.tensor(shape, bv);
+    Tensor o[3] = {c.empty(shape), c.empty(shape), c.empty(shape)};
+    Stream s(c.device);
     kernels::add(s, a, b, o[0]);
     kernels::sub(s, a, b, o[1]);
     kernels::mul(s, a, b, o[2]);
     s.run();
-    for (int op = 0; op < 3; ++op) expect_close(o[op].download(), ref::binary(op, av, bv));
-  }
+    const char* names[3] = {"add", "sub", "mul"};
+    for (int op = 0; op < 3; ++op) c.expect(names[op], o[op], ref::binary(op, av, bv));
+  });
 }
 
 // A sub-tensor view at a 16-byte offset (the vec4 path binds it as RGBA
 // texels), each op against the reference.
 TEST(ElementwiseKernels, BinaryOnViewsMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 12;
-  constexpr std::int64_t n = 2052;
-  const auto av = test::random_floats(n + 8, seed), bv = test::random_floats(n + 8, seed + 1);
-  Tensor a = Tensor::from(dev, {n + 8}, av), b = Tensor::from(dev, {n + 8}, bv);
-  for (const std::int64_t offset : {4, 8}) {
-    SCOPED_TRACE("offset " + std::to_string(offset) + " seed " + std::to_string(seed));
+  test::check_op("add/sub/mul on views", {.seed = 12, .cases = 4}, [](test::OpCase& c) {
+    const std::int64_t n = 4 * c.uniform(1, 1024) + c.uniform(0, 3);
+    const std::int64_t offset = 4 * c.uniform(1, 2);  // views start 16-byte aligned
+    c.describe("n " + std::to_string(n) + " at offset " + std::to_string(offset));
+    const auto av = c.floats(n + 8), bv = c.floats(n + 8);
+    Tensor a = c.tensor({n + 8}, av), b = c.tensor({n + 8}, bv);
     const Tensor va = a.view({n}, offset), vb = b.view({n}, offset);
-    Tensor o = Tensor::empty(dev, {n + 8});
+    Tensor o = c.empty({n + 8});
     const Tensor vo = o.view({n}, offset);
     const std::vector<float> sa(av.begin() + offset, av.begin() + offset + n),
         sb(bv.begin() + offset, bv.begin() + offset + n);
+    const char* names[3] = {"add", "sub", "mul"};
     for (int op = 0; op < 3; ++op) {
-      Stream s(dev);
+      Stream s(c.device);
       if (op == 0) kernels::add(s, va, vb, vo);
       if (op == 1) kernels::sub(s, va, vb, vo);
       if (op == 2) kernels::mul(s, va, vb, vo);
       s.run();
-      expect_close(vo.download(), ref::binary(op, sa, sb));
+      c.expect(names[op], vo.download(), ref::binary(op, sa, sb));
     }
-  }
+  });
 }
 
 TEST(ElementwiseKernels, ChannelBroadcastMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 12;
-  for (const Shape& shape : kShapes) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
+  auto check = kCheck;
+  check.seed = 12;
+  test::check_op("add_channel/mul_channel", check, [](test::OpCase& c) {
+    const Shape shape = draw_shape(c);
+    c.describe("x " + shape.str());
     const auto n = std::size_t(shape.numel());
-    const std::uint32_t c = shape.rank() == 1 ? std::uint32_t(shape[0]) : std::uint32_t(shape[1]);
-    const std::uint32_t hw = shape.rank() <= 2 ? 1u : std::uint32_t(n / shape[0] / c);
-    const auto xv = test::random_floats(n, seed), vv = test::random_floats(c, seed + 1);
-    const auto dyv = test::random_floats(n, seed + 2);
-    Tensor x = Tensor::from(dev, shape, xv), v = Tensor::from(dev, {c}, vv);
-    Tensor dy = Tensor::from(dev, shape, dyv);
-    Tensor ya = Tensor::empty(dev, shape), ym = Tensor::empty(dev, shape);
-    Tensor dx = Tensor::empty(dev, shape), dva = Tensor::empty(dev, {c}),
-           dvm = Tensor::empty(dev, {c});
-    Stream s(dev);
+    const std::uint32_t ch = shape.rank() == 1 ? std::uint32_t(shape[0]) : std::uint32_t(shape[1]);
+    const std::uint32_t hw = shape.rank() <= 2 ? 1u : std::uint32_t(n / shape[0] / ch);
+    const auto xv = c.floats(shape.numel()), vv = c.floats(ch), dyv = c.floats(shape.numel());
+    Tensor x = c.tensor(shape, xv), v = c.tensor({ch}, vv), dy = c.tensor(shape, dyv);
+    Tensor ya = c.empty(shape), ym = c.empty(shape), dx = c.empty(shape);
+    Tensor dva = c.empty({ch}), dvm = c.empty({ch});
+    Stream s(c.device);
     kernels::add_channel(s, x, v, ya);
     kernels::mul_channel(s, x, v, ym);
     kernels::add_channel_backward(s, dy, dva);
     kernels::mul_channel_backward(s, x, v, dy, &dx, &dvm);
     s.run();
-    expect_close(ya.download(), ref::binary(0, xv, vv, c, hw));
-    expect_close(ym.download(), ref::binary(2, xv, vv, c, hw));
-    expect_close(dx.download(), ref::binary(2, dyv, vv, c, hw));
-    expect_close(dva.download(), ref::channel_sum(dyv, {}, c, hw), 1e-4, 1e-5);
-    expect_close(dvm.download(), ref::channel_sum(dyv, xv, c, hw), 1e-4, 1e-5);
-  }
+    c.expect("add_channel", ya, ref::binary(0, xv, vv, ch, hw));
+    c.expect("mul_channel", ym, ref::binary(2, xv, vv, ch, hw));
+    c.expect("mul_channel dx", dx, ref::binary(2, dyv, vv, ch, hw));
+    c.expect("add_channel dv", dva, ref::channel_sum(dyv, {}, ch, hw), {1e-4, 1e-5});
+    c.expect("mul_channel dv", dvm, ref::channel_sum(dyv, xv, ch, hw), {1e-4, 1e-5});
+  });
 }
 
 TEST(ElementwiseKernels, UnaryMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 13;
-  for (const Shape& shape : kShapes) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
-    const auto n = std::size_t(shape.numel());
-    const auto xv = test::random_floats(n, seed, 0.1f, 3.f);  // log needs x > 0
-    const auto dyv = test::random_floats(n, seed + 1);
-    Tensor x = Tensor::from(dev, shape, xv), dy = Tensor::from(dev, shape, dyv);
+  auto check = kCheck;
+  check.seed = 13;
+  test::check_op("scale_shift/exp/log", check, [](test::OpCase& c) {
+    const Shape shape = draw_shape(c);
+    c.describe("x " + shape.str());
+    const auto xv = c.floats(shape.numel(), 0.1f, 3.f);  // log needs x > 0
+    const auto dyv = c.floats(shape.numel());
+    Tensor x = c.tensor(shape, xv), dy = c.tensor(shape, dyv);
     std::vector<Tensor> t;
-    for (int i = 0; i < 6; ++i) t.push_back(Tensor::empty(dev, shape));
-    Stream s(dev);
+    for (int i = 0; i < 6; ++i) t.push_back(c.empty(shape));
+    Stream s(c.device);
     kernels::scale_shift(s, x, -1.5f, 0.25f, t[0]);
     kernels::scale_shift_backward(s, dy, -1.5f, t[1]);
     kernels::exponential(s, x, t[2]);
@@ -117,14 +116,15 @@ TEST(ElementwiseKernels, UnaryMatchReference) {
     kernels::logarithm(s, x, t[4]);
     kernels::logarithm_backward(s, x, dy, t[5]);
     s.run();
-    expect_close(t[0].download(), ref::unary(ref::Unary::scale_shift, xv, -1.5f, 0.25f));
-    expect_close(t[1].download(), ref::unary_backward(ref::Unary::scale_shift, xv, dyv, -1.5f));
-    const auto ey = ref::unary(ref::Unary::exp, xv);
-    expect_close(t[2].download(), ey, 1e-5);
-    expect_close(t[3].download(), ref::unary_backward(ref::Unary::exp, ey, dyv), 1e-5);
-    expect_close(t[4].download(), ref::unary(ref::Unary::log, xv), 1e-5);
-    expect_close(t[5].download(), ref::unary_backward(ref::Unary::log, xv, dyv), 1e-5);
-  }
+    using ref::Unary;
+    c.expect("scale_shift", t[0], ref::unary(Unary::scale_shift, xv, -1.5f, 0.25f));
+    c.expect("scale_shift backward", t[1], ref::unary_backward(Unary::scale_shift, xv, dyv, -1.5f));
+    const auto ey = ref::unary(Unary::exp, xv);
+    c.expect("exp", t[2], ey);
+    c.expect("exp backward", t[3], ref::unary_backward(Unary::exp, ey, dyv));
+    c.expect("log", t[4], ref::unary(Unary::log, xv));
+    c.expect("log backward", t[5], ref::unary_backward(Unary::log, xv, dyv));
+  });
 }
 
 // L = Σ w ⊙ f(x) on the device; analytic dL/dx from the backward kernel fed w.

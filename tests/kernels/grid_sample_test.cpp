@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -31,10 +32,14 @@ std::vector<GridSampleOptions> all_options() {
   return v;
 }
 
-std::string name(const ref::SampleDims& d, const GridSampleOptions& o) {
+std::string dims_name(const ref::SampleDims& d) {
   return "N" + std::to_string(d.n) + " C" + std::to_string(d.c) + " in " + std::to_string(d.in_h) +
          "x" + std::to_string(d.in_w) + " out " + std::to_string(d.out_h) + "x" +
-         std::to_string(d.out_w) + (o.padding == SamplePadding::zeros ? " zeros" : " border") +
+         std::to_string(d.out_w);
+}
+
+std::string name(const ref::SampleDims& d, const GridSampleOptions& o) {
+  return dims_name(d) + (o.padding == SamplePadding::zeros ? " zeros" : " border") +
          (o.align_corners ? " align" : " no-align");
 }
 
@@ -66,15 +71,11 @@ std::vector<float> smooth_grid(const ref::SampleDims& d, bool align, std::uint32
   return g;
 }
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol,
-                  const std::string& what) {
-  ASSERT_EQ(got.size(), want.size()) << what;
-  double scale = 0;
-  for (float v : want) scale = std::max(scale, double(std::fabs(v)));
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_NEAR(got[i], want[i], rtol * (std::fabs(want[i]) + 1e-2 * scale + 1e-37))
-        << what << " at " << i;
-  }
+// The edge dimensions, then random ones.
+ref::SampleDims draw_dims(test::OpCase& c) {
+  if (c.index < int(kDims.size())) return kDims[std::size_t(c.index)];
+  return {c.uniform(1, 3),  c.uniform(1, 12), c.uniform(1, 40),
+          c.uniform(1, 40), c.uniform(1, 40), c.uniform(1, 40)};
 }
 
 std::vector<float> run_forward(Device& dev, const ref::SampleDims& d, std::span<const float> in,
@@ -105,35 +106,35 @@ Grads run_backward(Device& dev, const ref::SampleDims& d, std::span<const float>
 }
 
 TEST(GridSampleKernel, ForwardMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 31;
-  for (const auto& d : kDims) {
+  test::check_op("grid_sample", {.seed = 31, .cases = 12}, [](test::OpCase& c) {
+    const ref::SampleDims d = draw_dims(c);
+    c.describe(dims_name(d));
+    const auto in = c.floats(std::int64_t(img_numel(d)));
+    // Raw random grid, partly outside [-1, 1].
+    const auto grid = c.floats(std::int64_t(grid_numel(d)), -1.3f, 1.3f);
     for (const auto& o : all_options()) {
-      SCOPED_TRACE(name(d, o) + " seed=" + std::to_string(seed));
-      const auto in = test::random_floats(img_numel(d), seed);
-      // Raw random grid, partly outside [-1, 1].
-      const auto grid = test::random_floats(grid_numel(d), seed + 1, -1.3f, 1.3f);
-      expect_close(run_forward(dev, d, in, grid, o), ref::grid_sample(in, grid, d, o), 1e-4, "out");
+      const auto want = ref::grid_sample(in, grid, d, o);
+      c.expect("out " + name(d, o), run_forward(c.device, d, in, grid, o), want,
+               test::peak_relative(want, 1e-4));
     }
-  }
+  });
 }
 
 TEST(GridSampleKernel, BackwardMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 32;
-  for (const auto& d : kDims) {
+  test::check_op("grid_sample backward", {.seed = 32, .cases = 12}, [](test::OpCase& c) {
+    const ref::SampleDims d = draw_dims(c);
+    c.describe(dims_name(d));
+    const auto in = c.floats(std::int64_t(img_numel(d)));
+    const auto d_out = c.floats(std::int64_t(out_numel(d)));
     for (const auto& o : all_options()) {
-      SCOPED_TRACE(name(d, o) + " seed=" + std::to_string(seed));
-      const auto in = test::random_floats(img_numel(d), seed);
-      const auto grid = smooth_grid(d, o.align_corners, seed + 1);
-      const auto d_out = test::random_floats(out_numel(d), seed + 2);
-      const Grads got = run_backward(dev, d, in, grid, d_out, o);
+      const auto grid = smooth_grid(d, o.align_corners, c.seed + 1);
+      const Grads got = run_backward(c.device, d, in, grid, d_out, o);
       std::vector<float> d_input, d_grid;
       ref::grid_sample_backward(in, grid, d_out, d, o, d_input, d_grid);
-      expect_close(got.d_input, d_input, 1e-4, "d_input");
-      expect_close(got.d_grid, d_grid, 1e-4, "d_grid");
+      c.expect("d_input " + name(d, o), got.d_input, d_input, test::peak_relative(d_input, 1e-4));
+      c.expect("d_grid " + name(d, o), got.d_grid, d_grid, test::peak_relative(d_grid, 1e-4));
     }
-  }
+  });
 }
 
 TEST(GridSampleKernel, GradcheckInput) {
@@ -202,7 +203,7 @@ TEST(GridSampleKernel, IdentityAffineReproducesInput) {
     kernels::affine_grid(s, tt, grid, align);
     kernels::grid_sample(s, ti, grid, out, {SamplePadding::zeros, align});
     s.run();
-    expect_close(out.download(), in, 1e-4, "out");
+    test::expect_all_close("out", out.download(), in, test::peak_relative(in, 1e-4));
   }
 }
 
@@ -291,21 +292,23 @@ std::vector<float> run_affine_backward(Device& dev, const AffineDims& d,
 }
 
 TEST(AffineGridKernel, ForwardAndBackwardMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 51;
-  for (const auto& d : kAffineDims) {
+  test::check_op("affine_grid", {.seed = 51, .cases = 9}, [](test::OpCase& c) {
+    const AffineDims d = c.index < int(kAffineDims.size())
+                             ? kAffineDims[std::size_t(c.index)]
+                             : AffineDims{c.uniform(1, 3), c.uniform(1, 80), c.uniform(1, 80)};
+    c.describe("N" + std::to_string(d.n) + " " + std::to_string(d.h) + "x" + std::to_string(d.w));
+    const auto theta = c.floats(std::int64_t(d.n) * 6, -2, 2);
+    const auto d_grid = c.floats(std::int64_t(d.n) * d.h * d.w * 2);
     for (bool align : {false, true}) {
-      SCOPED_TRACE("N" + std::to_string(d.n) + " " + std::to_string(d.h) + "x" +
-                   std::to_string(d.w) + (align ? " align" : " no-align") +
-                   " seed=" + std::to_string(seed));
-      const auto theta = test::random_floats(std::size_t(d.n) * 6, seed, -2, 2);
-      expect_close(run_affine(dev, d, theta, align), ref::affine_grid(theta, d.n, d.h, d.w, align),
-                   1e-4, "grid");
-      const auto d_grid = test::random_floats(std::size_t(d.n) * d.h * d.w * 2, seed + 1);
-      expect_close(run_affine_backward(dev, d, d_grid, align),
-                   ref::affine_grid_backward(d_grid, d.n, d.h, d.w, align), 1e-4, "d_theta");
+      const std::string how = align ? " (align)" : " (no align)";
+      const auto want = ref::affine_grid(theta, d.n, d.h, d.w, align);
+      c.expect("grid" + how, run_affine(c.device, d, theta, align), want,
+               test::peak_relative(want, 1e-4));
+      const auto want_dt = ref::affine_grid_backward(d_grid, d.n, d.h, d.w, align);
+      c.expect("d_theta" + how, run_affine_backward(c.device, d, d_grid, align), want_dt,
+               test::peak_relative(want_dt, 1e-4));
     }
-  }
+  });
 }
 
 // Values PyTorch's affine_grid gives for the identity theta.

@@ -7,17 +7,12 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
 namespace {
-
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-4,
-                  double atol = 1e-7) {
-  test::expect_all_near(got, want, rtol, atol);
-}
 
 using PointFwd = void (*)(Stream&, const Tensor&, const Tensor&, const Tensor&);
 using PointBwd = void (*)(Stream&, const Tensor&, const Tensor&, const Tensor&, const Tensor&);
@@ -36,47 +31,46 @@ void run_pointwise_backward(int kind, Stream& s, const Tensor& p, const Tensor& 
 }
 
 TEST(LossKernels, PointwiseLossesMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 61;
-  for (const Shape& shape : {Shape{1}, Shape{2, 3, 1, 1}, Shape{2, 3, 17, 9}, Shape{70001}}) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
-    const auto n = std::size_t(shape.numel());
-    const auto pv = test::random_floats(n, seed), tv = test::random_floats(n, seed + 1);
-    Tensor p = Tensor::from(dev, shape, pv), t = Tensor::from(dev, shape, tv);
-    Tensor g = Tensor::from(dev, {1}, std::vector<float>{1.5f});
+  const std::vector<Shape> edges = {{1}, {2, 3, 1, 1}, {2, 3, 17, 9}, {70001}};
+  test::check_op("l1/mse/charbonnier", {.seed = 61, .cases = 8}, [&](test::OpCase& c) {
+    const Shape shape = c.edge_or(edges, [&] { return c.nchw(3, 8, 64, 64); });
+    c.describe("p, t " + shape.str());
+    const auto pv = c.floats(shape.numel()), tv = c.floats(shape.numel());
+    Tensor p = c.tensor(shape, pv), t = c.tensor(shape, tv);
+    Tensor g = c.tensor({1}, std::vector<float>{1.5f});
+    const char* names[3] = {"l1", "mse", "charbonnier"};
     for (int kind = 0; kind < 3; ++kind) {
-      Tensor loss = Tensor::empty(dev, {1}), dp = Tensor::empty(dev, shape);
-      Stream s(dev);
+      Tensor loss = c.empty({1}), dp = c.empty(shape);
+      Stream s(c.device);
       run_pointwise(kind, s, p, t, loss);
       run_pointwise_backward(kind, s, p, t, g, dp);
       s.run();
-      EXPECT_NEAR(loss.download()[0], ref::pointwise_loss(kind, pv, tv, kEps), 1e-5) << kind;
-      expect_close(dp.download(), ref::pointwise_loss_backward(kind, pv, tv, kEps, 1.5f));
+      c.expect(names[kind], loss, {float(ref::pointwise_loss(kind, pv, tv, kEps))}, {0, 1e-5});
+      c.expect(std::string(names[kind]) + " backward", dp,
+               ref::pointwise_loss_backward(kind, pv, tv, kEps, 1.5f), {1e-4, 1e-7});
     }
-  }
+  });
 }
 
 TEST(LossKernels, CosineAndCrossEntropyMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 62;
-  for (auto [rows, k] : std::vector<std::pair<std::int64_t, std::int64_t>>{
-           {1, 1}, {1, 10}, {3, 5}, {37, 17}, {5, 1000}}) {
-    SCOPED_TRACE("rows " + std::to_string(rows) + " k " + std::to_string(k) + " seed " +
-                 std::to_string(seed));
-    const auto n = std::size_t(rows * k);
-    const auto av = test::random_floats(n, seed), bv = test::random_floats(n, seed + 1);
-    const auto dyv = test::random_floats(std::size_t(rows), seed + 2);
+  const std::vector<Shape> edges = {{1, 1}, {1, 10}, {3, 5}, {37, 17}, {5, 1000}};
+  test::check_op("cosine/cross_entropy", {.seed = 62, .cases = 9}, [&](test::OpCase& c) {
+    const Shape shape = c.edge_or(edges, [&]() -> Shape {
+      return {c.uniform(1, 40), c.uniform(1, 1200)};
+    });
+    const std::int64_t rows = shape[0], k = shape[1];
+    c.describe("[rows, k] " + shape.str());
+    const auto av = c.floats(rows * k), bv = c.floats(rows * k), dyv = c.floats(rows);
     std::vector<std::int32_t> labels(static_cast<std::size_t>(rows));
-    for (std::size_t r = 0; r < labels.size(); ++r)
-      labels[r] = std::int32_t((r * 7 + 3) % std::size_t(k));
-    Tensor a = Tensor::from(dev, {rows, k}, av), b = Tensor::from(dev, {rows, k}, bv);
-    Tensor dy = Tensor::from(dev, {rows}, dyv), y = Tensor::empty(dev, {rows});
-    Tensor da = Tensor::empty(dev, {rows, k}), db = Tensor::empty(dev, {rows, k});
-    Tensor lab = Tensor::empty(dev, {rows}, DType::i32);
+    for (auto& l : labels) l = c.uniform(0, int(k) - 1);
+    Tensor a = c.tensor({rows, k}, av), b = c.tensor({rows, k}, bv);
+    Tensor dy = c.tensor({rows}, dyv), y = c.empty({rows});
+    Tensor da = c.empty({rows, k}), db = c.empty({rows, k});
+    Tensor lab = c.empty({rows}, DType::i32);
     lab.upload_bytes(labels.data(), labels.size() * 4);
-    Tensor xe = Tensor::empty(dev, {1}), dl = Tensor::empty(dev, {rows, k});
-    Tensor g = Tensor::from(dev, {1}, std::vector<float>{0.5f});
-    Stream s(dev);
+    Tensor xe = c.empty({1}), dl = c.empty({rows, k});
+    Tensor g = c.tensor({1}, std::vector<float>{0.5f});
+    Stream s(c.device);
     kernels::cosine_similarity(s, a, b, y);
     kernels::cosine_similarity_backward(s, a, b, dy, da, db);
     kernels::cross_entropy(s, a, lab, xe);
@@ -84,13 +78,14 @@ TEST(LossKernels, CosineAndCrossEntropyMatchReference) {
     s.run();
     std::vector<float> rda, rdb;
     ref::cosine_similarity_backward(av, bv, dyv, std::size_t(k), 1e-8f, rda, rdb);
-    expect_close(y.download(), ref::cosine_similarity(av, bv, std::size_t(k), 1e-8f), 1e-4, 1e-6);
-    expect_close(da.download(), rda, 1e-4, 1e-6);
-    expect_close(db.download(), rdb, 1e-4, 1e-6);
-    EXPECT_NEAR(xe.download()[0], ref::cross_entropy(av, labels, std::size_t(k)), 1e-5);
-    expect_close(dl.download(), ref::cross_entropy_backward(av, labels, std::size_t(k), 0.5f), 1e-4,
-                 1e-7);
-  }
+    c.expect("cosine", y, ref::cosine_similarity(av, bv, std::size_t(k), 1e-8f), {1e-4, 1e-6});
+    c.expect("cosine da", da, rda, {1e-4, 1e-6});
+    c.expect("cosine db", db, rdb, {1e-4, 1e-6});
+    c.expect("cross_entropy", xe, {float(ref::cross_entropy(av, labels, std::size_t(k)))},
+             {0, 1e-5});
+    c.expect("cross_entropy backward", dl,
+             ref::cross_entropy_backward(av, labels, std::size_t(k), 0.5f), {1e-4, 1e-7});
+  });
 }
 
 TEST(LossKernels, GradientsMatchFiniteDifferences) {

@@ -6,7 +6,7 @@
 
 #include <random>
 
-#include "support/expect.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -42,9 +42,9 @@ TEST(MixPlanes, MatchesReferenceOnRandomShapes) {
     s.run();
     std::vector<float> want, want2;
     ref::mix_planes(planes, h, w, mix, k, p, want, want2);
-    test::expect_all_near(out.download(), want, 1e-4, 1e-5);
-    test::expect_all_near(out2.download(), want, 1e-4, 1e-5);
-    test::expect_all_near(f2.download(), want2, 1e-4, 1e-5);
+    test::expect_all_close("out", out.download(), want, {1e-4, 1e-5});
+    test::expect_all_close("out2", out2.download(), want, {1e-4, 1e-5});
+    test::expect_all_close("f2", f2.download(), want2, {1e-4, 1e-5});
   }
 }
 

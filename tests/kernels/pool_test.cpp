@@ -11,6 +11,7 @@
 #include <string>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -33,42 +34,41 @@ std::string str(const Case& k) {
          std::to_string(p.pad_right);
 }
 
-// Fixed edge cases (1x1 images, TF SAME, overlapping windows, odd sizes)
-// plus random ones.
-std::vector<Case> cases(std::uint32_t seed) {
-  std::vector<Case> v = {
-      {1, 1, 1, 1, kernels::pool_valid(1, 1, 1, 1)},
-      {1, 1, 1, 1, kernels::pool_same(3, 3, 2, 2, 1, 1)},
-      {2, 3, 7, 9, kernels::pool_valid(2, 2, 2, 2)},
-      {1, 2, 8, 8, kernels::pool_same(3, 3, 2, 2, 8, 8)},
-      {2, 1, 13, 17, kernels::pool_same(3, 3, 1, 1, 13, 17)},
-      {1, 3, 31, 29, Pool2d{3, 2, 2, 1, 1, 2, 0, 1}},
-      {1, 1, 67, 5, kernels::pool_same(2, 2, 2, 2, 67, 5)},
-      {1, 2, 23, 19, Pool2d{9, 8, 3, 2, 4, 1, 0, 7}},    // wider than the unrolled 7×7
-      {1, 32, 72, 72, kernels::pool_valid(3, 3, 2, 2)},  // the face ResNet's
-  };
-  std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
-  for (int i = 0; i < 6; ++i) {
-    Case k{uni(1, 3), uni(1, 5), uni(1, 40), uni(1, 40), {}};
-    const int kh = uni(1, 4), kw = uni(1, 4);
-    if (uni(0, 1)) {
-      k.p = kernels::pool_same(kh, kw, uni(1, 3), uni(1, 3), k.h, k.w);
-    } else {
-      k.h = std::max<std::int64_t>(k.h, kh);
-      k.w = std::max<std::int64_t>(k.w, kw);
-      k.p = Pool2d{kh,
-                   kw,
-                   uni(1, 3),
-                   uni(1, 3),
-                   uni(0, kh - 1),
-                   uni(0, kh - 1),
-                   uni(0, kw - 1),
-                   uni(0, kw - 1)};
-    }
-    v.push_back(k);
+// Fixed edge cases (1x1 images, TF SAME, overlapping windows, odd sizes),
+// then random ones.
+const std::vector<Case> kEdges = {
+    {1, 1, 1, 1, kernels::pool_valid(1, 1, 1, 1)},
+    {1, 1, 1, 1, kernels::pool_same(3, 3, 2, 2, 1, 1)},
+    {2, 3, 7, 9, kernels::pool_valid(2, 2, 2, 2)},
+    {1, 2, 8, 8, kernels::pool_same(3, 3, 2, 2, 8, 8)},
+    {2, 1, 13, 17, kernels::pool_same(3, 3, 1, 1, 13, 17)},
+    {1, 3, 31, 29, Pool2d{3, 2, 2, 1, 1, 2, 0, 1}},
+    {1, 1, 67, 5, kernels::pool_same(2, 2, 2, 2, 67, 5)},
+    {1, 2, 23, 19, Pool2d{9, 8, 3, 2, 4, 1, 0, 7}},    // wider than the unrolled 7×7
+    {1, 32, 72, 72, kernels::pool_valid(3, 3, 2, 2)},  // the face ResNet's
+};
+constexpr int kCases = 15;
+
+Case draw_case(test::OpCase& c) {
+  if (c.index < int(kEdges.size())) return kEdges[std::size_t(c.index)];
+  auto uni = [&](int lo, int hi) { return c.uniform(lo, hi); };
+  Case k{uni(1, 3), uni(1, 5), uni(1, 40), uni(1, 40), {}};
+  const int kh = uni(1, 4), kw = uni(1, 4);
+  if (uni(0, 1)) {
+    k.p = kernels::pool_same(kh, kw, uni(1, 3), uni(1, 3), k.h, k.w);
+  } else {
+    k.h = std::max<std::int64_t>(k.h, kh);
+    k.w = std::max<std::int64_t>(k.w, kw);
+    k.p = Pool2d{kh,
+                 kw,
+                 uni(1, 3),
+                 uni(1, 3),
+                 uni(0, kh - 1),
+                 uni(0, kh - 1),
+                 uni(0, kw - 1),
+                 uni(0, kw - 1)};
   }
-  return v;
+  return k;
 }
 
 // Distinct values 0.1 apart in random order: no ties, and a finite-difference
@@ -81,13 +81,7 @@ std::vector<float> distinct_values(std::size_t n, std::uint32_t seed) {
   return v;
 }
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol,
-                  const std::string& what) {
-  ASSERT_EQ(got.size(), want.size()) << what;
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_NEAR(got[i], want[i], rtol * (1 + std::fabs(want[i]))) << what << " at " << i;
-  }
-}
+constexpr test::Tol kTol{1e-5, 1e-5}, kExact{0, 0};
 
 std::vector<std::int32_t> download_i32(const Tensor& t) {
   std::vector<std::int32_t> v(std::size_t(t.numel()));
@@ -96,82 +90,72 @@ std::vector<std::int32_t> download_i32(const Tensor& t) {
 }
 
 TEST(PoolKernels, MaxPoolMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 501;
-  for (const Case& k : cases(seed)) {
-    SCOPED_TRACE(str(k) + " seed=" + std::to_string(seed));
+  test::check_op("max_pool2d", {.seed = 501, .cases = kCases}, [](test::OpCase& c) {
+    const Case k = draw_case(c);
+    c.describe(str(k));
     const Shape xs{k.n, k.c, k.h, k.w};
-    const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
+    const auto xv = c.floats(xs.numel());
     const Shape ys = kernels::pool_output_shape(xs, k.p);
-    Tensor x = Tensor::from(dev, xs, xv);
-    Tensor y = Tensor::empty(dev, ys), idx = Tensor::empty(dev, ys, DType::i32);
-    const auto dyv = test::random_floats(std::size_t(ys.numel()), seed + 1);
-    Tensor dy = Tensor::from(dev, ys, dyv), dx = Tensor::empty(dev, xs);
-    Stream s(dev);
+    Tensor x = c.tensor(xs, xv), y = c.empty(ys), idx = c.empty(ys, DType::i32);
+    const auto dyv = c.floats(ys.numel());
+    Tensor dy = c.tensor(ys, dyv), dx = c.empty(xs);
+    Stream s(c.device);
     kernels::max_pool2d(s, x, k.p, y, idx);
     kernels::max_pool2d_backward(s, dy, idx, k.p, dx);
-    s.run();
-    const auto r = ref::max_pool2d(xv, k.n * k.c, k.h, k.w, k.p);
-    ASSERT_EQ(r.oh, ys[2]);
-    ASSERT_EQ(r.ow, ys[3]);
-    EXPECT_EQ(y.download(), r.y);
-    EXPECT_EQ(download_i32(idx), r.indices);
-    expect_close(dx.download(), ref::max_pool2d_backward(dyv, r.indices, k.n * k.c, k.h, k.w, k.p),
-                 1e-5, "dx");
-
     // Inference forms: no indices; into the zero-padded input of a 3×3
     // 'same' conv (the interior is the pool, the border stays zero).
-    Tensor y2 = Tensor::empty(dev, ys);
+    Tensor y2 = c.empty(ys);
     kernels::max_pool2d(s, x, k.p, y2, Tensor());
     kernels::Conv2dParams cp;
     cp.pad = kernels::same_padding(ys[2], ys[3], 3, 3, 1, 1);
     cp.algo = kernels::Conv2dAlgo::blocked;  // (one channel would run depthwise)
     const kernels::PlaneLayout yl =
-        kernels::Conv2dPlan(dev, ys, Shape{8, ys[1], 3, 3}, cp).input_layout();
+        kernels::Conv2dPlan(c.device, ys, Shape{8, ys[1], 3, 3}, cp).input_layout();
     ASSERT_FALSE(yl.plain());
     const kernels::Planes yp = kernels::Planes::make(s, ys, yl);
     kernels::max_pool2d_into_padded(s, x, k.p, yp);
     s.run();
-    EXPECT_EQ(y2.download(), r.y);
-    const auto padded = yp.data.download();
+    const auto r = ref::max_pool2d(xv, k.n * k.c, k.h, k.w, k.p);
+    ASSERT_EQ(r.oh, ys[2]);
+    ASSERT_EQ(r.ow, ys[3]);
+    c.expect("y", y, r.y, kExact);
+    c.expect_equal("indices", idx, r.indices);
+    c.expect("dx", dx, ref::max_pool2d_backward(dyv, r.indices, k.n * k.c, k.h, k.w, k.p), kTol);
+    c.expect("y without indices", y2, r.y, kExact);
+    std::vector<float> want_padded(std::size_t(ys[0] * ys[1]) * yl.hp * yl.wp, 0.f);
     for (std::int64_t pl = 0; pl < ys[0] * ys[1]; ++pl) {
-      for (std::int64_t i = 0; i < std::int64_t(yl.hp); ++i) {
-        for (std::int64_t j = 0; j < std::int64_t(yl.wp); ++j) {
-          const std::int64_t oy = i - yl.top, ox = j - yl.left;
-          const bool inside = oy >= 0 && oy < ys[2] && ox >= 0 && ox < ys[3];
-          const float want = inside ? r.y[std::size_t((pl * ys[2] + oy) * ys[3] + ox)] : 0.f;
-          ASSERT_EQ(padded[std::size_t((pl * yl.hp + i) * yl.wp + j)], want)
-              << "padded plane " << pl << " at " << i << "," << j;
+      for (std::int64_t oy = 0; oy < ys[2]; ++oy) {
+        for (std::int64_t ox = 0; ox < ys[3]; ++ox) {
+          want_padded[std::size_t((pl * yl.hp + oy + yl.top) * yl.wp + ox + yl.left)] =
+              r.y[std::size_t((pl * ys[2] + oy) * ys[3] + ox)];
         }
       }
     }
-  }
+    c.expect("y into padded planes", yp.data, want_padded, kExact);
+  });
 }
 
 TEST(PoolKernels, AvgPoolMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 502;
-  for (const Case& k : cases(seed)) {
+  test::check_op("avg_pool2d", {.seed = 502, .cases = kCases}, [](test::OpCase& c) {
+    const Case k = draw_case(c);
+    c.describe(str(k));
+    const Shape xs{k.n, k.c, k.h, k.w};
+    const auto xv = c.floats(xs.numel());
+    const Shape ys = kernels::pool_output_shape(xs, k.p);
+    const auto dyv = c.floats(ys.numel());
+    Tensor x = c.tensor(xs, xv), dy = c.tensor(ys, dyv);
     for (bool include_pad : {false, true}) {
-      SCOPED_TRACE(str(k) + " include_pad=" + std::to_string(include_pad) +
-                   " seed=" + std::to_string(seed));
-      const Shape xs{k.n, k.c, k.h, k.w};
-      const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
-      const Shape ys = kernels::pool_output_shape(xs, k.p);
-      const auto dyv = test::random_floats(std::size_t(ys.numel()), seed + 1);
-      Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
-      Tensor dy = Tensor::from(dev, ys, dyv), dx = Tensor::empty(dev, xs);
-      Stream s(dev);
+      Tensor y = c.empty(ys), dx = c.empty(xs);
+      Stream s(c.device);
       kernels::avg_pool2d(s, x, k.p, include_pad, y);
       kernels::avg_pool2d_backward(s, dy, k.p, include_pad, dx);
       s.run();
-      expect_close(y.download(), ref::avg_pool2d(xv, k.n * k.c, k.h, k.w, k.p, include_pad).y, 1e-5,
-                   "y");
-      expect_close(dx.download(),
-                   ref::avg_pool2d_backward(dyv, k.n * k.c, k.h, k.w, k.p, include_pad), 1e-5,
-                   "dx");
+      const std::string pad = include_pad ? " (padding counted)" : " (padding not counted)";
+      c.expect("y" + pad, y, ref::avg_pool2d(xv, k.n * k.c, k.h, k.w, k.p, include_pad).y, kTol);
+      c.expect("dx" + pad, dx, ref::avg_pool2d_backward(dyv, k.n * k.c, k.h, k.w, k.p, include_pad),
+               kTol);
     }
-  }
+  });
 }
 
 TEST(PoolKernels, AvgPoolPaddingConventions) {
@@ -193,29 +177,27 @@ TEST(PoolKernels, AvgPoolPaddingConventions) {
 }
 
 TEST(PoolKernels, GlobalAvgPoolMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 503;
   // Planes ≤ 64 values run one invocation each, larger ones a workgroup each.
-  const std::vector<Shape> shapes = {{1, 1, 1, 1},  {2, 3, 7, 5},   {1, 256, 2, 2}, {1, 70, 8, 8},
-                                     {1, 5, 5, 13}, {1, 4, 33, 31}, {3, 2, 64, 65}};
-  for (const Shape& xs : shapes) {
-    SCOPED_TRACE("x " + xs.str() + " seed=" + std::to_string(seed));
-    const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
+  const std::vector<Shape> edges = {{1, 1, 1, 1},  {2, 3, 7, 5},   {1, 256, 2, 2}, {1, 70, 8, 8},
+                                    {1, 5, 5, 13}, {1, 4, 33, 31}, {3, 2, 64, 65}};
+  test::check_op("global_avg_pool", {.seed = 503, .cases = 11}, [&](test::OpCase& c) {
+    const Shape xs = c.edge_or(edges, [&] { return c.nchw(3, 40, 50, 50); });
+    c.describe("x " + xs.str());
+    const auto xv = c.floats(xs.numel());
     const Shape ys{xs[0], xs[1], 1, 1};
-    const auto dyv = test::random_floats(std::size_t(ys.numel()), seed + 1);
-    Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
-    Tensor dy = Tensor::from(dev, ys, dyv), dx = Tensor::empty(dev, xs);
-    Stream s(dev);
+    const auto dyv = c.floats(ys.numel());
+    Tensor x = c.tensor(xs, xv), y = c.empty(ys), dy = c.tensor(ys, dyv), dx = c.empty(xs);
+    Stream s(c.device);
     kernels::global_avg_pool(s, x, y);
     kernels::global_avg_pool_backward(s, dy, dx);
     s.run();
-    expect_close(y.download(), ref::global_avg_pool(xv, xs[0] * xs[1], xs[2] * xs[3]), 1e-5, "y");
-    const auto dxv = dx.download();
+    c.expect("y", y, ref::global_avg_pool(xv, xs[0] * xs[1], xs[2] * xs[3]), kTol);
     const std::int64_t hw = xs[2] * xs[3];
-    for (std::int64_t i = 0; i < xs.numel(); ++i) {
-      ASSERT_NEAR(dxv[std::size_t(i)], dyv[std::size_t(i / hw)] / float(hw), 1e-7);
-    }
-  }
+    std::vector<float> want_dx(xv.size());
+    for (std::size_t i = 0; i < want_dx.size(); ++i)
+      want_dx[i] = dyv[i / std::size_t(hw)] / float(hw);
+    c.expect("dx", dx, want_dx, {0, 1e-7});
+  });
 }
 
 // Loss Σ w ⊙ pool(x) evaluated on the device.

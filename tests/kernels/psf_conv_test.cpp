@@ -8,8 +8,8 @@
 #include <cmath>
 #include <random>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -112,8 +112,8 @@ TEST(PsfConv, FftPathMatchesReference) {
     // FFT rounding grows with the padded size: relative to the largest value.
     double scale = 0;
     for (float v : ry) scale = std::max(scale, double(std::fabs(v)));
-    test::expect_all_near(ty.download(), ry, 1e-4, 1e-5 * (1 + scale));
-    test::expect_all_near(tn.download(), rnorm, 1e-4, 1e-5 * (1 + scale));
+    test::expect_all_close("ty", ty.download(), ry, {1e-4, 1e-5 * (1 + scale)});
+    test::expect_all_close("tn", tn.download(), rnorm, {1e-4, 1e-5 * (1 + scale)});
   }
   // Kernels in chunks: small temporaries force 6 passes of ≤ 2 kernels, and
   // Ψ̂ in chunks of 12160 B / (18·21·8 B) = 4 kernels.
@@ -133,8 +133,8 @@ TEST(PsfConv, FftPathMatchesReference) {
     s.run();
     std::vector<float> ry, rnorm;
     ref::psf_conv(d, in.x, in.beta, in.psi, true, ry, rnorm);
-    test::expect_all_near(ty.download(), ry, 1e-4, 1e-5);
-    test::expect_all_near(tn.download(), rnorm, 1e-4, 1e-5);
+    test::expect_all_close("ty", ty.download(), ry, {1e-4, 1e-5});
+    test::expect_all_close("tn", tn.download(), rnorm, {1e-4, 1e-5});
   }
   // Bad shapes.
   Tensor psi_even = Tensor::empty(dev, {2, 4, 4});

@@ -8,7 +8,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "support/expect.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -28,7 +28,7 @@ TEST(Random, RandnMatchesReference) {
     s.run();
     std::vector<float> want(static_cast<std::size_t>(n));
     ref::randn(want, kSeed, 7, 0.5f, 2.f);
-    test::expect_all_near(t.download(), want, 1e-5, 2e-6);
+    test::expect_all_close("t", t.download(), want, {1e-5, 2e-6});
   }
 }
 
@@ -97,7 +97,7 @@ TEST(Random, Ar1MatchesReferenceAndKeepsUnitVariance) {
   }
   s.run();
   const auto x3 = x.download();
-  test::expect_all_near(x3, want, 1e-5, 3e-6);
+  test::expect_all_close("x3", x3, want, {1e-5, 3e-6});
   // Lag-3 correlation ρ³ = 0.512 (σ ≈ (1 − ρ⁶)/√n ≈ 0.0014), variance 1.
   double c = 0, v = 0;
   for (std::size_t i = 0; i < x3.size(); ++i) {
@@ -120,8 +120,8 @@ TEST(Random, SensorNoiseMatchesReferenceInPlaceAndOut) {
   s.run();
   std::vector<float> want(xs.size());
   ref::sensor_noise(xs, want, 1.f / 500, 0.01f, 9, 2);
-  test::expect_all_near(y.download(), want, 1e-5, 1e-6);
-  test::expect_all_near(x.download(), want, 1e-5, 1e-6);
+  test::expect_all_close("y", y.download(), want, {1e-5, 1e-6});
+  test::expect_all_close("x", x.download(), want, {1e-5, 1e-6});
 }
 
 TEST(Random, BadArgumentsAreClearErrors) {

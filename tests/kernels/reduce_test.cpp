@@ -8,83 +8,77 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
 namespace {
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-4,
-                  double atol = 1e-5) {
-  test::expect_all_near(got, want, rtol, atol);
-}
+constexpr test::Tol kExact{0, 0};
 
-// rows × k: single rows, short rows (< subgroup), rows not filling a group, long rows.
-const std::vector<std::pair<std::int64_t, std::int64_t>> kRowShapes = {
-    {1, 1}, {1, 7}, {3, 5}, {33, 17}, {70, 130}, {2, 5000}, {1, 65}};
+// rows × k: single rows, short rows (< subgroup), rows not filling a group,
+// long rows; then random ones.
+const std::vector<Shape> kRowEdges = {{1, 1},    {1, 7},    {3, 5}, {33, 17},
+                                      {70, 130}, {2, 5000}, {1, 65}};
 
 TEST(ReduceKernels, RowReductionsMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 31;
-  for (auto [rows, k] : kRowShapes) {
-    SCOPED_TRACE("rows " + std::to_string(rows) + " k " + std::to_string(k) + " seed " +
-                 std::to_string(seed));
-    const auto n = std::size_t(rows * k);
-    const auto xv = test::random_floats(n, seed + std::uint32_t(n));
-    Tensor x = Tensor::from(dev, {rows, k}, xv);
-    Tensor o[3] = {Tensor::empty(dev, {rows}), Tensor::empty(dev, {rows, 1}),
-                   Tensor::empty(dev, {rows})};
-    Tensor mv = Tensor::empty(dev, {rows}), mi = Tensor::empty(dev, {rows}, DType::i32);
-    Stream s(dev);
+  test::check_op("row reductions", {.seed = 31, .cases = 11}, [](test::OpCase& c) {
+    const Shape shape = c.edge_or(kRowEdges, [&]() -> Shape {
+      return {c.uniform(1, 80), c.uniform(1, 3000)};
+    });
+    const std::int64_t rows = shape[0], k = shape[1];
+    c.describe("[rows, k] " + shape.str());
+    const auto xv = c.floats(rows * k);
+    Tensor x = c.tensor(shape, xv);
+    Tensor o[3] = {c.empty({rows}), c.empty({rows, 1}), c.empty({rows})};
+    Tensor mv = c.empty({rows}), mi = c.empty({rows}, DType::i32);
+    Stream s(c.device);
     kernels::sum_rows(s, x, o[0]);
     kernels::mean_rows(s, x, o[1]);
     kernels::l2norm_rows(s, x, o[2]);
     kernels::max_rows(s, x, mv, mi);
     s.run();
+    const char* names[3] = {"sum_rows", "mean_rows", "l2norm_rows"};
     for (int op = 0; op < 3; ++op) {
-      // Sums: error scale is Σ|x| (≤ k), so compare against sqrt(k)-scaled atol.
-      expect_close(o[op].download(), ref::reduce_rows(op, xv, std::size_t(k)), 1e-4,
-                   1e-6 * double(k));
+      // Sums: the rounding grows with Σ|x| (≤ k).
+      c.expect(names[op], o[op], ref::reduce_rows(op, xv, std::size_t(k)),
+               {1e-4, 1e-6 * double(k)});
     }
     std::vector<float> rv;
     std::vector<std::int32_t> ri;
-    std::vector<std::int32_t> gi(static_cast<std::size_t>(rows));
     ref::max_rows(xv, std::size_t(k), rv, ri);
-    mi.download_bytes(gi.data(), gi.size() * 4);
-    EXPECT_EQ(mv.download(), rv);
-    EXPECT_EQ(gi, ri);
-  }
+    c.expect("max_rows value", mv, rv, kExact);
+    c.expect_equal("max_rows index", mi, ri);
+  });
 }
 
 TEST(ReduceKernels, FullReductionsAndMaxAll) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 32;
-  for (std::int64_t n : {1, 7, 4096, 4097, 100'003}) {
-    SCOPED_TRACE("n " + std::to_string(n) + " seed " + std::to_string(seed));
-    auto xv = test::random_floats(std::size_t(n), seed + std::uint32_t(n));
+  const std::vector<Shape> edges = {{1}, {7}, {4096}, {4097}, {100'003}};
+  test::check_op("sum_all/mean_all/max_all", {.seed = 32, .cases = 8}, [&](test::OpCase& c) {
+    const Shape shape = c.edge_or(edges, [&]() -> Shape { return {c.uniform(1, 300'000)}; });
+    const std::int64_t n = shape[0];
+    c.describe("n " + std::to_string(n));
+    auto xv = c.floats(n);
     if (n > 10) xv[std::size_t(n) - 3] = 5.f;  // the max near the end, twice
     if (n > 10) xv[std::size_t(n) / 2] = 5.f;
-    Tensor x = Tensor::from(dev, {n}, xv);
-    Tensor sm = Tensor::empty(dev, {1}), mn = Tensor::empty(dev, {1});
-    Tensor mv = Tensor::empty(dev, {1}), mi = Tensor::empty(dev, {1}, DType::i32);
-    Stream s(dev);
+    Tensor x = c.tensor(shape, xv);
+    Tensor sm = c.empty({1}), mn = c.empty({1}), mv = c.empty({1}), mi = c.empty({1}, DType::i32);
+    Stream s(c.device);
     kernels::sum_all(s, x, sm);
     kernels::mean_all(s, x, mn);
     kernels::max_all(s, x, mv, mi);
     s.run();
     double total = 0;
     for (float v : xv) total += v;
-    EXPECT_NEAR(sm.download()[0], total, 1e-5 * double(n));
-    EXPECT_NEAR(mn.download()[0], total / double(n), 1e-5);
+    c.expect("sum_all", sm, {float(total)}, {0, 1e-5 * double(n)});
+    c.expect("mean_all", mn, {float(total / double(n))}, {0, 1e-5});
     std::vector<float> rv;
     std::vector<std::int32_t> ri;
     ref::max_rows(xv, xv.size(), rv, ri);
-    std::int32_t gi = -1;
-    mi.download_bytes(&gi, 4);
-    EXPECT_EQ(mv.download()[0], rv[0]);
-    EXPECT_EQ(gi, ri[0]);
-  }
+    c.expect("max_all value", mv, rv, kExact);
+    c.expect_equal("max_all index", mi, ri);
+  });
 }
 
 TEST(ReduceKernels, MaxTiesNaNAndInfinity) {
@@ -109,21 +103,21 @@ TEST(ReduceKernels, MaxTiesNaNAndInfinity) {
 }
 
 TEST(ReduceKernels, ChannelSumsMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 33;
-  for (const Shape& shape : {Shape{5}, Shape{3, 7}, Shape{64, 100}, Shape{2, 3, 1, 1},
-                             Shape{2, 5, 17, 9}, Shape{3, 40, 4, 4}}) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
+  const std::vector<Shape> edges = {{5},          {3, 7},        {64, 100},
+                                    {2, 3, 1, 1}, {2, 5, 17, 9}, {3, 40, 4, 4}};
+  test::check_op("sum_channels", {.seed = 33, .cases = 10}, [&](test::OpCase& c) {
+    const Shape shape = c.edge_or(edges, [&] { return c.nchw(4, 70, 40, 40); });
+    c.describe("x " + shape.str());
     const auto n = std::size_t(shape.numel());
-    const auto c = std::uint32_t(shape.rank() == 1 ? shape[0] : shape[1]);
-    const auto hw = std::uint32_t(shape.rank() == 1 ? 1 : n / std::size_t(shape[0]) / c);
-    const auto xv = test::random_floats(n, seed);
-    Tensor x = Tensor::from(dev, shape, xv), out = Tensor::empty(dev, {c});
-    Stream s(dev);
+    const auto ch = std::uint32_t(shape.rank() == 1 ? shape[0] : shape[1]);
+    const auto hw = std::uint32_t(shape.rank() == 1 ? 1 : n / std::size_t(shape[0]) / ch);
+    const auto xv = c.floats(shape.numel());
+    Tensor x = c.tensor(shape, xv), out = c.empty({ch});
+    Stream s(c.device);
     kernels::sum_channels(s, x, out);
     s.run();
-    expect_close(out.download(), ref::channel_sum(xv, {}, c, hw), 1e-4, 1e-5);
-  }
+    c.expect("sum_channels", out, ref::channel_sum(xv, {}, ch, hw), {1e-4, 1e-5});
+  });
 }
 
 TEST(ReduceKernels, GradientsMatchFiniteDifferences) {

@@ -7,42 +7,37 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
 namespace {
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol = 1e-4,
-                  double atol = 1e-6) {
-  test::expect_all_near(got, want, rtol, atol);
-}
-
 TEST(SoftmaxKernels, ForwardAndBackwardMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 41;
-  for (const Shape& shape : {Shape{1, 1}, Shape{3, 5}, Shape{33, 10}, Shape{2, 3, 1000}}) {
-    SCOPED_TRACE("shape " + shape.str() + " seed " + std::to_string(seed));
-    const auto n = std::size_t(shape.numel()), k = std::size_t(shape[-1]);
+  const std::vector<Shape> edges = {{1, 1}, {3, 5}, {33, 10}, {2, 3, 1000}};
+  test::check_op("softmax/log_softmax", {.seed = 41, .cases = 8}, [&](test::OpCase& c) {
+    const Shape shape = c.edge_or(edges, [&]() -> Shape {
+      return {c.uniform(1, 4), c.uniform(1, 40), c.uniform(1, 1500)};
+    });
+    c.describe("x " + shape.str());
+    const auto k = std::size_t(shape[-1]);
     // Large offsets: the max subtraction keeps exp finite.
-    const auto xv = test::random_floats(n, seed, 60.f, 90.f);
-    const auto dyv = test::random_floats(n, seed + 1);
-    Tensor x = Tensor::from(dev, shape, xv), dy = Tensor::from(dev, shape, dyv);
-    Tensor y = Tensor::empty(dev, shape), ly = Tensor::empty(dev, shape);
-    Tensor dx = Tensor::empty(dev, shape), ldx = Tensor::empty(dev, shape);
-    Stream s(dev);
+    const auto xv = c.floats(shape.numel(), 60.f, 90.f), dyv = c.floats(shape.numel());
+    Tensor x = c.tensor(shape, xv), dy = c.tensor(shape, dyv);
+    Tensor y = c.empty(shape), ly = c.empty(shape), dx = c.empty(shape), ldx = c.empty(shape);
+    Stream s(c.device);
     kernels::softmax(s, x, y);
     kernels::log_softmax(s, x, ly);
     kernels::softmax_backward(s, y, dy, dx);
     kernels::log_softmax_backward(s, ly, dy, ldx);
     s.run();
     const auto ry = ref::softmax(xv, k, false), rly = ref::softmax(xv, k, true);
-    expect_close(y.download(), ry, 1e-4, 1e-7);
-    expect_close(ly.download(), rly, 1e-4, 1e-5);
-    expect_close(dx.download(), ref::softmax_backward(ry, dyv, k, false), 1e-4, 1e-6);
-    expect_close(ldx.download(), ref::softmax_backward(rly, dyv, k, true), 1e-4, 1e-5);
-  }
+    c.expect("softmax", y, ry, {1e-4, 1e-7});
+    c.expect("log_softmax", ly, rly, {1e-4, 1e-5});
+    c.expect("softmax backward", dx, ref::softmax_backward(ry, dyv, k, false), {1e-4, 1e-6});
+    c.expect("log_softmax backward", ldx, ref::softmax_backward(rly, dyv, k, true), {1e-4, 1e-5});
+  });
 }
 
 TEST(SoftmaxKernels, GradientsMatchFiniteDifferences) {

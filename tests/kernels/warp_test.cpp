@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -44,15 +45,10 @@ std::vector<float> smooth_flow(std::size_t count, std::uint32_t seed) {
   return f;
 }
 
-void expect_close(const std::vector<float>& got, const std::vector<float>& want, double rtol,
-                  const std::string& what) {
-  ASSERT_EQ(got.size(), want.size()) << what;
-  double scale = 0;
-  for (float v : want) scale = std::max(scale, double(std::fabs(v)));
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    ASSERT_NEAR(got[i], want[i], rtol * (std::fabs(want[i]) + 1e-2 * scale + 1e-37))
-        << what << " at " << i;
-  }
+// The edge dimensions, then random ones.
+Dims draw_dims(test::OpCase& c) {
+  if (c.index < int(kDims.size())) return kDims[std::size_t(c.index)];
+  return {c.uniform(1, 3), c.uniform(1, 12), c.uniform(1, 48), c.uniform(1, 48)};
 }
 
 std::vector<float> run_warp(Device& dev, const Dims& d, std::span<const float> img,
@@ -67,17 +63,17 @@ std::vector<float> run_warp(Device& dev, const Dims& d, std::span<const float> i
 }
 
 TEST(WarpKernel, ForwardMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 2024;
-  for (const Dims& d : kDims) {
+  test::check_op("warp", {.seed = 2024, .cases = 11}, [](test::OpCase& c) {
+    const Dims d = draw_dims(c);
+    c.describe(d.str());
+    const auto img = c.floats(std::int64_t(d.n) * d.c * d.h * d.w);
+    const auto flow = c.floats(std::int64_t(d.n) * 2 * d.h * d.w, -4, 4);
     for (SamplePadding padding : {SamplePadding::zeros, SamplePadding::border}) {
-      SCOPED_TRACE(d.str() + " " + padding_name(padding) + " seed=" + std::to_string(seed));
-      const auto img = test::random_floats(std::size_t(d.n) * d.c * d.h * d.w, seed);
-      const auto flow = test::random_floats(std::size_t(d.n) * 2 * d.h * d.w, seed + 1, -4, 4);
-      expect_close(run_warp(dev, d, img, flow, padding),
-                   ref::warp(img, flow, d.n, d.c, d.h, d.w, padding), 1e-4, "out");
+      const auto want = ref::warp(img, flow, d.n, d.c, d.h, d.w, padding);
+      c.expect(std::string("out ") + padding_name(padding),
+               run_warp(c.device, d, img, flow, padding), want, test::peak_relative(want, 1e-4));
     }
-  }
+  });
 }
 
 TEST(WarpKernel, ZeroFlowIsIdentity) {
@@ -110,22 +106,22 @@ WarpGrads run_backward(Device& dev, const Dims& d, std::span<const float> img,
 }
 
 TEST(WarpKernel, BackwardMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 77;
-  for (const Dims& d : kDims) {
+  test::check_op("warp backward", {.seed = 77, .cases = 11}, [](test::OpCase& c) {
+    const Dims d = draw_dims(c);
+    c.describe(d.str());
+    const std::int64_t numel = std::int64_t(d.n) * d.c * d.h * d.w;
+    const auto img = c.floats(numel);
+    const auto flow = smooth_flow(std::size_t(d.n) * 2 * d.h * d.w, c.seed + 1);
+    const auto d_out = c.floats(numel);
     for (SamplePadding padding : {SamplePadding::zeros, SamplePadding::border}) {
-      SCOPED_TRACE(d.str() + " " + padding_name(padding) + " seed=" + std::to_string(seed));
-      const std::size_t numel = std::size_t(d.n) * d.c * d.h * d.w;
-      const auto img = test::random_floats(numel, seed);
-      const auto flow = smooth_flow(std::size_t(d.n) * 2 * d.h * d.w, seed + 1);
-      const auto d_out = test::random_floats(numel, seed + 2);
-      const WarpGrads got = run_backward(dev, d, img, flow, d_out, padding);
+      const WarpGrads got = run_backward(c.device, d, img, flow, d_out, padding);
       std::vector<float> d_img, d_flow;
       ref::warp_backward(img, flow, d_out, d.n, d.c, d.h, d.w, padding, d_img, d_flow);
-      expect_close(got.d_img, d_img, 1e-4, "d_img");
-      expect_close(got.d_flow, d_flow, 1e-4, "d_flow");
+      const std::string how = std::string(" ") + padding_name(padding);
+      c.expect("d_img" + how, got.d_img, d_img, test::peak_relative(d_img, 1e-4));
+      c.expect("d_flow" + how, got.d_flow, d_flow, test::peak_relative(d_flow, 1e-4));
     }
-  }
+  });
 }
 
 // Only one of the two gradients, and large flows that pile many output
@@ -150,8 +146,8 @@ TEST(WarpKernel, BackwardSingleGradientAndPileUps) {
   kernels::warp_backward(s, ti, tf, tg, &di, nullptr, SamplePadding::border);
   kernels::warp_backward(s, ti, tf, tg, nullptr, &df, SamplePadding::border);
   s.run();
-  expect_close(di.download(), d_img, 1e-4, "d_img");
-  expect_close(df.download(), d_flow, 1e-4, "d_flow");
+  test::expect_all_close("d_img", di.download(), d_img, test::peak_relative(d_img, 1e-4));
+  test::expect_all_close("d_flow", df.download(), d_flow, test::peak_relative(d_flow, 1e-4));
 }
 
 // The fixed-point d_img scale follows max |d_out|: tiny and huge gradients
@@ -169,8 +165,9 @@ TEST(WarpKernel, BackwardImageAtExtremeScales) {
     for (float& g : d_out) g *= scale;
     std::vector<float> d_img, d_flow;
     ref::warp_backward(img, flow, d_out, d.n, d.c, d.h, d.w, SamplePadding::zeros, d_img, d_flow);
-    expect_close(run_backward(dev, d, img, flow, d_out, SamplePadding::zeros).d_img, d_img, 1e-4,
-                 "d_img");
+    test::expect_all_close("d_img",
+                           run_backward(dev, d, img, flow, d_out, SamplePadding::zeros).d_img,
+                           d_img, test::peak_relative(d_img, 1e-4));
   }
 }
 

@@ -15,8 +15,8 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2::nets {

@@ -6,7 +6,7 @@
 
 #include <cmath>
 
-#include "support/expect.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2::nets {
@@ -46,9 +46,11 @@ TEST(NetsLayers, BatchNormTrainingMatchesReferenceAndUpdatesRunningStats) {
     want_rm[std::size_t(c)] = float(0.1 * mean);
     want_rv[std::size_t(c)] = float(0.9 + 0.1 * var * m / (m - 1));
   }
-  test::expect_all_near(y.value().download(), want, 1e-4, 1e-5);
-  test::expect_all_near(bn.running_mean.value().download(), want_rm, 1e-5, 1e-6);
-  test::expect_all_near(bn.running_var.value().download(), want_rv, 1e-5, 1e-6);
+  test::expect_all_close("y", y.value().download(), want, {1e-4, 1e-5});
+  test::expect_all_close("bn.running_mean", bn.running_mean.value().download(), want_rm,
+                         {1e-5, 1e-6});
+  test::expect_all_close("bn.running_var", bn.running_var.value().download(), want_rv,
+                         {1e-5, 1e-6});
 
   // Eval mode uses the running statistics.
   bn.eval();

@@ -14,8 +14,8 @@
 #include <string>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/frame_gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2::sim {
@@ -103,7 +103,7 @@ TEST_F(BlurModelTest, WeightsMatchTheNetwork) {
       for (int k = 0; k < 6; ++k)
         want[(std::size_t(b) * 6 + k) * points + p] =
             want_rows[(std::size_t(b) * points + p) * 6 + k];
-  test::expect_all_near(beta.download(), want, 1e-4, 1e-5);
+  test::expect_all_close("beta", beta.download(), want, {1e-4, 1e-5});
   // A coefficient scale (λ_0/λ_c) is the network on scaled inputs.
   std::vector<double> scaled = rows;
   for (double& v : scaled) v *= 0.8;
@@ -118,7 +118,7 @@ TEST_F(BlurModelTest, WeightsMatchTheNetwork) {
                     want_scaled_rows[(std::size_t(b) * points + p) * 6 + k], 1e-4);
   blur.weights(s, coeffs, beta);  // the unscaled layer is still there
   s.run();
-  test::expect_all_near(beta.download(), want, 1e-4, 1e-5);
+  test::expect_all_close("beta", beta.download(), want, {1e-4, 1e-5});
   Tensor wrong = Tensor::empty(dev, {n, 12, h, w});  // a_2..a_13 only
   EXPECT_THROW(blur.weights(s, wrong, beta), InvalidArgument);
   EXPECT_THROW(blur.weights(s, coeffs, beta, 0.f), InvalidArgument);
@@ -217,9 +217,10 @@ TEST_F(BlurModelTest, MoreThanFourChannelsShareOneBeta) {
   s.run();
   const auto got = y6.download(), want = y1.download();
   for (int c = 0; c < 6; ++c) {
-    test::expect_all_near(std::vector<float>(got.begin() + std::ptrdiff_t(c) * h * w,
-                                             got.begin() + std::ptrdiff_t(c + 1) * h * w),
-                          want, 1e-5, 1e-5);
+    test::expect_all_close("got",
+                           std::vector<float>(got.begin() + std::ptrdiff_t(c) * h * w,
+                                              got.begin() + std::ptrdiff_t(c + 1) * h * w),
+                           want, {1e-5, 1e-5});
   }
   EXPECT_EQ(six.beta(5).shape(), six.beta(0).shape());
 }
@@ -310,7 +311,7 @@ TEST(BlurModelDefault, RgbChannelsAreTheGreyFramesAtTheirWavelengths) {
       const auto from = std::ptrdiff_t(t * 3 + c) * h * w;
       have.insert(have.end(), got.begin() + from, got.begin() + from + h * w);
     }
-    test::expect_all_near(have, want, 2e-4, 1e-4);
+    test::expect_all_close("have", have, want, {2e-4, 1e-4});
   }
   // The wavelength matters: the red and blue grey frames of one scene differ.
   Params p = rgb;

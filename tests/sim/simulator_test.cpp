@@ -10,9 +10,9 @@
 #include <cstring>
 #include <vector>
 
-#include "support/expect.hpp"
 #include "support/frame_gradcheck.hpp"
 #include "support/host_vulkan.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2::sim {
@@ -59,7 +59,7 @@ TEST(Simulator, TiltFrameIsTheWarpOfTheField) {
   s.run();
   const auto flow = sim.flow().download();
   const auto want = ref::warp(xs, flow, 2, 3, 40, 56, kernels::SamplePadding::border);
-  test::expect_all_near(y.download(), want, 1e-5, 1e-5);
+  test::expect_all_close("y", y.download(), want, {1e-5, 1e-5});
   // Corner grid points sit on corner pixels.
   const auto tilt = sim.field().tilt_px().download();
   const int gh = sim.field().grid_h(), gw = sim.field().grid_w();
@@ -132,7 +132,7 @@ TEST(Simulator, RecordsIntoAHostCommandBufferOnAnAdoptedDevice) {
     EXPECT_EQ(commands.submits, 1);  // the whole frame pair is one host submission
   }
   const auto got = yb.floats();
-  test::expect_all_near(std::vector<float>(got.begin(), got.end()), want, 1e-5, 1e-5);
+  test::expect_all_close("got", std::vector<float>(got.begin(), got.end()), want, {1e-5, 1e-5});
   EXPECT_EQ(host.messages, 0);
 }
 

@@ -13,6 +13,7 @@ namespace {
 
 std::atomic<std::size_t> g_outside_messages{0};
 std::unique_ptr<Device> g_device;
+std::unique_ptr<Device> g_staging_device, g_pool_device;
 
 void on_message(std::string_view message) {
   if (::testing::UnitTest::GetInstance()->current_test_info() != nullptr) {
@@ -38,7 +39,33 @@ Device& device() {
   return *g_device;
 }
 
+const char* path_name(DevicePath path) {
+  switch (path) {
+    case DevicePath::mapped:
+      return "mapped";
+    case DevicePath::staging:
+      return "staging";
+    case DevicePath::descriptor_pool:
+      return "descriptor-pool";
+  }
+  return "?";
+}
+
+Device& device(DevicePath path) {
+  if (path == DevicePath::mapped) return device();
+  auto& slot = path == DevicePath::staging ? g_staging_device : g_pool_device;
+  if (!slot) {
+    DeviceOptions o = options();
+    o.force_staging = path == DevicePath::staging;
+    o.push_descriptors = path != DevicePath::descriptor_pool;
+    slot = std::make_unique<Device>(o);
+  }
+  return *slot;
+}
+
 std::size_t shutdown() {
+  g_staging_device.reset();
+  g_pool_device.reset();
   g_device.reset();
   return g_outside_messages.load();
 }

@@ -17,7 +17,17 @@ DeviceOptions options();
 // The device shared by the tests of one process.
 Device& device();
 
-// Destroys the shared device; returns the number of validation messages seen
+// How tensors reach the device and how kernels bind them.
+enum class DevicePath {
+  mapped,          // the default: host-visible tensors, push descriptors where present
+  staging,         // every upload and download through a staging buffer
+  descriptor_pool  // descriptor sets from pools (no VK_KHR_push_descriptor)
+};
+const char* path_name(DevicePath path);
+// The process's device for a path (mapped: device()), made on first use.
+Device& device(DevicePath path);
+
+// Destroys the shared devices; returns the number of validation messages seen
 // outside any test (0 = clean).
 std::size_t shutdown();
 
