@@ -4,67 +4,65 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
+#include <string>
+#include <vector>
 
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
 namespace {
 
 // Sizes that do and do not divide the workgroup (256) and per-group (1024,
-// 2048) counts, plus random ones.
-std::vector<std::int64_t> sizes(std::uint32_t seed) {
-  std::vector<std::int64_t> s = {1, 7, 255, 256, 1023, 1024, 1025, 2047, 2048, 2049, 65537};
-  std::mt19937 rng(seed);
-  for (int i = 0; i < 4; ++i)
-    s.push_back(std::uniform_int_distribution<std::int64_t>(1, 3'000'000)(rng));
-  return s;
+// 2048) counts, then random ones.
+const std::vector<Shape> kEdges = {{1},    {7},    {255},  {256},  {1023}, {1024},
+                                   {1025}, {2047}, {2048}, {2049}, {65537}};
+constexpr int kRandomCases = 4;
+
+std::int64_t draw_size(test::OpCase& c) {
+  return c.edge_or(kEdges, [&]() -> Shape { return {c.uniform(1, 3'000'000)}; })[0];
 }
 
 TEST(BasicKernels, FillCopyAxpyMatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 1234;
-  for (std::int64_t n : sizes(seed)) {
-    SCOPED_TRACE("n=" + std::to_string(n) + " seed=" + std::to_string(seed));
-    const auto xs = test::random_floats(std::size_t(n), seed + std::uint32_t(n));
-    const auto ys = test::random_floats(std::size_t(n), seed + 1 + std::uint32_t(n));
-    Tensor x = Tensor::from(dev, {n}, xs);
-    Tensor y = Tensor::from(dev, {n}, ys);
-    Tensor c = Tensor::empty(dev, {n});
-    Tensor f = Tensor::empty(dev, {n});
-    Stream s(dev);
+  const test::OpCheck check{.seed = 1234, .cases = int(kEdges.size()) + kRandomCases};
+  test::check_op("fill/copy/axpy", check, [](test::OpCase& c) {
+    const std::int64_t n = draw_size(c);
+    c.describe("n " + std::to_string(n));
+    const auto xs = c.floats(n), ys = c.floats(n);
+    Tensor x = c.tensor({n}, xs);
+    Tensor y = c.tensor({n}, ys);
+    Tensor cp = c.empty({n});
+    Tensor f = c.empty({n});
+    Stream s(c.device);
     kernels::fill(s, f, -3.5f);
-    kernels::copy(s, x, c);
+    kernels::copy(s, x, cp);
     kernels::axpy(s, 0.75f, x, y);
     s.run();
     std::vector<float> ry = ys;
     ref::axpy(0.75f, xs, ry);
-    const auto gf = f.download(), gc = c.download(), gy = y.download();
-    for (std::int64_t i = 0; i < n; ++i) {
-      ASSERT_EQ(gf[i], -3.5f);
-      ASSERT_EQ(gc[i], xs[i]);
-      ASSERT_NEAR(gy[i], ry[i], 1e-6f * (1 + std::fabs(ry[i])));
-    }
-  }
+    c.expect("fill", f, std::vector<float>(std::size_t(n), -3.5f), {0, 0});
+    c.expect("copy", cp, xs, {0, 0});
+    c.expect("axpy", y, ry, {1e-6, 1e-6});
+  });
 }
 
 TEST(BasicKernels, SumMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 99;
-  for (std::int64_t n : sizes(seed)) {
-    SCOPED_TRACE("n=" + std::to_string(n) + " seed=" + std::to_string(seed));
-    const auto xs = test::random_floats(std::size_t(n), seed + std::uint32_t(n));
-    Tensor x = Tensor::from(dev, {n}, xs);
-    Tensor out = Tensor::empty(dev, {1});
-    Stream s(dev);
+  const test::OpCheck check{.seed = 99, .cases = int(kEdges.size()) + kRandomCases};
+  test::check_op("sum", check, [](test::OpCase& c) {
+    const std::int64_t n = draw_size(c);
+    c.describe("n " + std::to_string(n));
+    const auto xs = c.floats(n);
+    Tensor x = c.tensor({n}, xs);
+    Tensor out = c.empty({1});
+    Stream s(c.device);
     kernels::sum(s, x, out);
     s.run();
     double abs_sum = 0;
     for (float v : xs) abs_sum += std::fabs(v);
     // fp32 tree sum: error bounded by ~log2(n)·eps·Σ|x|.
-    EXPECT_NEAR(out.download()[0], ref::sum(xs),
-                1e-4 * abs_sum / std::sqrt(double(n)) + 1e-5 * abs_sum);
-  }
+    c.expect("sum", out, {float(ref::sum(xs))},
+             {0, 1e-4 * abs_sum / std::sqrt(double(n)) + 1e-5 * abs_sum});
+  });
 }
 
 TEST(BasicKernels, SumIsDeterministic) {

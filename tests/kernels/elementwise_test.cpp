@@ -19,16 +19,14 @@ namespace {
 // (4092, 4100) and exact groups (2×4096). Then random ones.
 const std::vector<Shape> kEdges = {
     {1}, {7}, {3, 5}, {2, 3, 1, 1}, {2, 5, 17, 9}, {1, 4, 33, 31}, {1025}, {4100}, {2, 4096}};
-constexpr test::OpCheck kCheck{.cases = 13};
+constexpr int kCases = 13;  // the edges and 4 random shapes
 
 Shape draw_shape(test::OpCase& c) {
   return c.edge_or(kEdges, [&] { return c.nchw(3, 6, 40, 40); });
 }
 
 TEST(ElementwiseKernels, BinaryMatchReference) {
-  auto check = kCheck;
-  check.seed = 11;
-  test::check_op("add/sub/mul", check, [](test::OpCase& c) {
+  test::check_op("add/sub/mul", {.seed = 11, .cases = kCases}, [](test::OpCase& c) {
     const Shape shape = draw_shape(c);
     c.describe("a, b " + shape.str());
     const auto av = c.floats(shape.numel()), bv = c.floats(shape.numel());
@@ -71,9 +69,7 @@ TEST(ElementwiseKernels, BinaryOnViewsMatchReference) {
 }
 
 TEST(ElementwiseKernels, ChannelBroadcastMatchesReference) {
-  auto check = kCheck;
-  check.seed = 12;
-  test::check_op("add_channel/mul_channel", check, [](test::OpCase& c) {
+  test::check_op("add_channel/mul_channel", {.seed = 12, .cases = kCases}, [](test::OpCase& c) {
     const Shape shape = draw_shape(c);
     c.describe("x " + shape.str());
     const auto n = std::size_t(shape.numel());
@@ -98,9 +94,7 @@ TEST(ElementwiseKernels, ChannelBroadcastMatchesReference) {
 }
 
 TEST(ElementwiseKernels, UnaryMatchReference) {
-  auto check = kCheck;
-  check.seed = 13;
-  test::check_op("scale_shift/exp/log", check, [](test::OpCase& c) {
+  test::check_op("scale_shift/exp/log", {.seed = 13, .cases = kCases}, [](test::OpCase& c) {
     const Shape shape = draw_shape(c);
     c.describe("x " + shape.str());
     const auto xv = c.floats(shape.numel(), 0.1f, 3.f);  // log needs x > 0

@@ -4,10 +4,11 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
-#include <random>
 #include <string>
+#include <vector>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -17,137 +18,127 @@ using kernels::Pad2d;
 using kernels::SliceStart;
 using ref::Nchw;
 
-Shape shape(Nchw s) { return Shape{s.n, s.c, s.h, s.w}; }
-std::string str(Nchw s) { return shape(s).str(); }
+constexpr test::Tol kExact{0, 0};
 
-std::vector<Nchw> shapes(std::uint32_t seed) {
-  std::vector<Nchw> v = {{1, 1, 1, 1}, {2, 3, 7, 9}, {1, 4, 16, 16}, {3, 2, 5, 67}};
-  std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) {
-    return std::int64_t(std::uniform_int_distribution<int>(lo, hi)(rng));
-  };
-  for (int i = 0; i < 4; ++i) v.push_back({uni(1, 3), uni(1, 6), uni(1, 30), uni(1, 30)});
-  return v;
+Shape shape(Nchw s) { return Shape{s.n, s.c, s.h, s.w}; }
+
+// Edge shapes (one element, odd sizes, 16×16, a 67-wide row), then random ones.
+const std::vector<Shape> kEdges = {{1, 1, 1, 1}, {2, 3, 7, 9}, {1, 4, 16, 16}, {3, 2, 5, 67}};
+constexpr int kRandomCases = 4;
+
+Nchw draw_shape(test::OpCase& c, const std::vector<Shape>& edges = kEdges) {
+  const Shape s = c.edge_or(edges, [&] { return c.nchw(3, 6, 30, 30); });
+  return {s[0], s[1], s[2], s[3]};
 }
 
 TEST(LayoutKernels, PadMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 701;
-  std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) { return std::uniform_int_distribution<int>(lo, hi)(rng); };
-  for (Nchw s : shapes(seed)) {
-    const Pad2d p{uni(0, 3), uni(0, 3), uni(0, 5), uni(0, 2)};
-    SCOPED_TRACE(str(s) + " pad " + std::to_string(p.top) + "/" + std::to_string(p.bottom) + "/" +
-                 std::to_string(p.left) + "/" + std::to_string(p.right) +
-                 " seed=" + std::to_string(seed));
+  const int cases = int(kEdges.size()) + kRandomCases;
+  test::check_op("pad", {.seed = 701, .cases = cases}, [](test::OpCase& c) {
+    const Nchw s = draw_shape(c);
+    const Pad2d p{c.uniform(0, 3), c.uniform(0, 3), c.uniform(0, 5), c.uniform(0, 2)};
+    c.describe("x " + shape(s).str() + " pad " + std::to_string(p.top) + "/" +
+               std::to_string(p.bottom) + "/" + std::to_string(p.left) + "/" +
+               std::to_string(p.right));
     const Nchw o{s.n, s.c, s.h + p.top + p.bottom, s.w + p.left + p.right};
-    const auto xv = test::random_floats(std::size_t(s.numel()), seed);
-    const auto dyv = test::random_floats(std::size_t(o.numel()), seed + 1);
-    Tensor x = Tensor::from(dev, shape(s), xv), y = Tensor::empty(dev, shape(o));
-    Tensor dy = Tensor::from(dev, shape(o), dyv), dx = Tensor::empty(dev, shape(s));
-    Stream st(dev);
+    const auto xv = c.floats(s.numel()), dyv = c.floats(o.numel());
+    Tensor x = c.tensor(shape(s), xv), y = c.empty(shape(o));
+    Tensor dy = c.tensor(shape(o), dyv), dx = c.empty(shape(s));
+    Stream st(c.device);
     kernels::pad(st, x, p, -2.5f, y);
     kernels::pad_backward(st, dy, p, dx);
     st.run();
-    EXPECT_EQ(y.download(), ref::pad(xv, s, p, -2.5f));
+    c.expect("y", y, ref::pad(xv, s, p, -2.5f), kExact);
     // pad's adjoint is the crop of its interior.
-    EXPECT_EQ(dx.download(), ref::slice(dyv, o, SliceStart{0, p.top, p.left}, s));
-  }
+    c.expect("dx", dx, ref::slice(dyv, o, SliceStart{0, p.top, p.left}, s), kExact);
+  });
 }
 
 TEST(LayoutKernels, SliceMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 702;
-  std::mt19937 rng(seed);
-  auto uni = [&](std::int64_t lo, std::int64_t hi) {
-    return std::uniform_int_distribution<std::int64_t>(lo, hi)(rng);
-  };
-  for (Nchw s : shapes(seed)) {
+  const int cases = int(kEdges.size()) + kRandomCases;
+  test::check_op("slice", {.seed = 702, .cases = cases}, [](test::OpCase& c) {
+    const Nchw s = draw_shape(c);
+    auto uni = [&](std::int64_t lo, std::int64_t hi) {
+      return std::int64_t(c.uniform(int(lo), int(hi)));
+    };
     const Nchw o{s.n, uni(1, s.c), uni(1, s.h), uni(1, s.w)};
     const SliceStart at{uni(0, s.c - o.c), uni(0, s.h - o.h), uni(0, s.w - o.w)};
-    SCOPED_TRACE(str(s) + " -> " + str(o) + " at " + std::to_string(at.channel) + "," +
-                 std::to_string(at.row) + "," + std::to_string(at.col) +
-                 " seed=" + std::to_string(seed));
-    const auto xv = test::random_floats(std::size_t(s.numel()), seed);
-    const auto dyv = test::random_floats(std::size_t(o.numel()), seed + 1);
-    Tensor x = Tensor::from(dev, shape(s), xv), y = Tensor::empty(dev, shape(o));
-    Tensor dy = Tensor::from(dev, shape(o), dyv), dx = Tensor::empty(dev, shape(s));
-    Stream st(dev);
+    c.describe("x " + shape(s).str() + " -> " + shape(o).str() + " at " +
+               std::to_string(at.channel) + "," + std::to_string(at.row) + "," +
+               std::to_string(at.col));
+    const auto xv = c.floats(s.numel()), dyv = c.floats(o.numel());
+    Tensor x = c.tensor(shape(s), xv), y = c.empty(shape(o));
+    Tensor dy = c.tensor(shape(o), dyv), dx = c.empty(shape(s));
+    Stream st(c.device);
     kernels::slice(st, x, at, y);
     kernels::slice_backward(st, dy, at, dx);
     st.run();
-    EXPECT_EQ(y.download(), ref::slice(xv, s, at, o));
+    c.expect("y", y, ref::slice(xv, s, at, o), kExact);
     // slice's adjoint: dy placed at `at`, zero elsewhere.
-    const auto dxv = dx.download();
     std::vector<float> want(std::size_t(s.numel()), 0.f);
     std::size_t k = 0;
     for (std::int64_t n = 0; n < o.n; ++n)
-      for (std::int64_t c = 0; c < o.c; ++c)
+      for (std::int64_t ch = 0; ch < o.c; ++ch)
         for (std::int64_t i = 0; i < o.h; ++i)
           for (std::int64_t j = 0; j < o.w; ++j)
-            want[std::size_t(((n * s.c + c + at.channel) * s.h + i + at.row) * s.w + j + at.col)] =
+            want[std::size_t(((n * s.c + ch + at.channel) * s.h + i + at.row) * s.w + j + at.col)] =
                 dyv[k++];
-    EXPECT_EQ(dxv, want);
-  }
+    c.expect("dx", dx, want, kExact);
+  });
 }
 
 TEST(LayoutKernels, ConcatMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 703;
-  auto all = shapes(seed);
-  all.push_back({17, 2, 3, 5});  // past kMaxCopies: the shader path instead of transfer copies
-  for (Nchw s : all) {
+  std::vector<Shape> edges = kEdges;
+  edges.push_back({17, 2, 3, 5});  // past kMaxCopies: the shader path instead of transfer copies
+  const int cases = int(edges.size()) + kRandomCases;
+  test::check_op("concat_channels", {.seed = 703, .cases = cases}, [&](test::OpCase& c) {
+    const Nchw s = draw_shape(c, edges);
     const std::vector<Nchw> parts = {{s.n, s.c, s.h, s.w}, {s.n, 1, s.h, s.w}, {s.n, 3, s.h, s.w}};
-    SCOPED_TRACE(str(s) + " seed=" + std::to_string(seed));
+    c.describe("parts " + shape(parts[0]).str() + ", " + shape(parts[1]).str() + ", " +
+               shape(parts[2]).str());
     std::vector<std::vector<float>> values;
     std::vector<Tensor> xs, dxs;
     std::int64_t channels = 0;
-    for (std::size_t k = 0; k < parts.size(); ++k) {
-      values.push_back(test::random_floats(std::size_t(parts[k].numel()), seed + std::uint32_t(k)));
-      xs.push_back(Tensor::from(dev, shape(parts[k]), values.back()));
-      dxs.push_back(Tensor::empty(dev, shape(parts[k])));
-      channels += parts[k].c;
+    for (const Nchw& part : parts) {
+      values.push_back(c.floats(part.numel()));
+      xs.push_back(c.tensor(shape(part), values.back()));
+      dxs.push_back(c.empty(shape(part)));
+      channels += part.c;
     }
-    Tensor y = Tensor::empty(dev, {s.n, channels, s.h, s.w});
-    Stream st(dev);
+    Tensor y = c.empty({s.n, channels, s.h, s.w});
+    Stream st(c.device);
     kernels::concat_channels(st, xs, y);
     kernels::concat_channels_backward(st, y, dxs);
     st.run();
-    EXPECT_EQ(y.download(), ref::concat_channels(values, parts));
-    for (std::size_t k = 0; k < parts.size(); ++k) EXPECT_EQ(dxs[k].download(), values[k]);
-  }
+    c.expect("y", y, ref::concat_channels(values, parts), kExact);
+    for (std::size_t k = 0; k < parts.size(); ++k) {
+      c.expect("dx" + std::to_string(k), dxs[k], values[k], kExact);
+    }
+  });
 }
 
 TEST(LayoutKernels, ChannelAffineMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 704;
-  for (Nchw s : shapes(seed)) {
-    SCOPED_TRACE(str(s) + " seed=" + std::to_string(seed));
-    const auto xv = test::random_floats(std::size_t(s.numel()), seed);
-    const auto dyv = test::random_floats(std::size_t(s.numel()), seed + 1);
-    const auto sv = test::random_floats(std::size_t(s.c), seed + 2, 0.5f, 2.f);
-    const auto bv = test::random_floats(std::size_t(s.c), seed + 3);
-    Tensor x = Tensor::from(dev, shape(s), xv), y = Tensor::empty(dev, shape(s));
-    Tensor scale = Tensor::from(dev, {s.c}, sv), bias = Tensor::from(dev, {s.c}, bv);
-    Tensor dy = Tensor::from(dev, shape(s), dyv), dx = Tensor::empty(dev, shape(s));
-    Tensor ds = Tensor::empty(dev, {s.c}), db = Tensor::empty(dev, {s.c});
-    Stream st(dev);
+  const int cases = int(kEdges.size()) + kRandomCases;
+  test::check_op("channel_affine", {.seed = 704, .cases = cases}, [](test::OpCase& c) {
+    const Nchw s = draw_shape(c);
+    c.describe("x " + shape(s).str());
+    const auto xv = c.floats(s.numel()), dyv = c.floats(s.numel());
+    const auto sv = c.floats(s.c, 0.5f, 2.f), bv = c.floats(s.c);
+    Tensor x = c.tensor(shape(s), xv), y = c.empty(shape(s));
+    Tensor scale = c.tensor({s.c}, sv), bias = c.tensor({s.c}, bv);
+    Tensor dy = c.tensor(shape(s), dyv), dx = c.empty(shape(s));
+    Tensor ds = c.empty({s.c}), db = c.empty({s.c});
+    Stream st(c.device);
     kernels::channel_affine(st, x, scale, bias, y);
     kernels::channel_affine_backward(st, x, scale, dy, &dx, &ds, &db);
     st.run();
-    const auto want = ref::channel_affine(xv, s, sv, bv);
-    const auto got = y.download();
-    for (std::size_t i = 0; i < want.size(); ++i) ASSERT_NEAR(got[i], want[i], 1e-6);
+    c.expect("y", y, ref::channel_affine(xv, s, sv, bv), {0, 1e-6});
     std::vector<float> rdx, rds, rdb;
     ref::channel_affine_backward(xv, s, sv, dyv, rdx, rds, rdb);
-    EXPECT_EQ(dx.download(), rdx);
-    const auto gds = ds.download(), gdb = db.download();
+    c.expect("dx", dx, rdx, kExact);
     const double tol = 1e-5 * double(s.n * s.h * s.w);  // fp32 sums of O(1) terms
-    for (std::size_t c = 0; c < rds.size(); ++c) {
-      EXPECT_NEAR(gds[c], rds[c], tol) << "dscale " << c;
-      EXPECT_NEAR(gdb[c], rdb[c], tol) << "dbias " << c;
-    }
-  }
+    c.expect("dscale", ds, rds, {0, tol});
+    c.expect("dbias", db, rdb, {0, tol});
+  });
 }
 
 TEST(LayoutKernels, ChannelAffineGradientsMatchFiniteDifferences) {

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -32,25 +33,25 @@ std::vector<float> run_ssim(Device& dev, const Shape& s, std::span<const float> 
   return out.download();
 }
 
+std::vector<float> to_float(const std::vector<double>& v) { return {v.begin(), v.end()}; }
+
 TEST(MetricsKernels, PsnrMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 801;
-  const std::vector<Shape> shapes = {{1, 1, 1, 1}, {2, 3, 7, 5}, {3, 1, 33, 47}, {2, 3, 64, 61}};
-  for (const Shape& s : shapes) {
+  const std::vector<Shape> edges = {{1, 1, 1, 1}, {2, 3, 7, 5}, {3, 1, 33, 47}, {2, 3, 64, 61}};
+  test::check_op("psnr", {.seed = 801, .cases = int(edges.size()) + 4}, [&](test::OpCase& c) {
+    const Shape s = c.edge_or(edges, [&] { return c.nchw(3, 3, 64, 64); });
+    c.describe("a, b " + s.str());
     for (float range : {1.f, 255.f}) {
-      SCOPED_TRACE(s.str() + " L=" + std::to_string(range) + " seed=" + std::to_string(seed));
-      auto av = test::random_floats(std::size_t(s.numel()), seed, 0.f, range);
-      auto bv = test::random_floats(std::size_t(s.numel()), seed + 1, 0.f, range);
-      Tensor a = Tensor::from(dev, s, av), b = Tensor::from(dev, s, bv);
-      Tensor out = Tensor::empty(dev, {s[0]});
-      Stream st(dev);
+      const std::string l = " L=" + std::to_string(int(range));
+      const auto av = c.floats(s.numel(), 0.f, range), bv = c.floats(s.numel(), 0.f, range);
+      Tensor a = c.tensor(s, av), b = c.tensor(s, bv);
+      Tensor out = c.empty({s[0]});
+      Stream st(c.device);
       kernels::psnr(st, a, b, range, out);
       st.run();
-      const auto got = out.download();
-      const auto want = ref::psnr(av, bv, s[0], s[1], s[2], s[3], range);
-      for (std::size_t i = 0; i < want.size(); ++i) EXPECT_NEAR(got[i], want[i], 1e-4 * want[i]);
+      c.expect("psnr" + l, out, to_float(ref::psnr(av, bv, s[0], s[1], s[2], s[3], range)),
+               {1e-4, 0});
     }
-  }
+  });
 }
 
 TEST(MetricsKernels, PsnrOfIdenticalImagesIsInfinite) {
@@ -69,24 +70,25 @@ TEST(MetricsKernels, PsnrOfIdenticalImagesIsInfinite) {
 }
 
 TEST(MetricsKernels, SsimMatchesReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 803;
-  const std::vector<Shape> shapes = {{1, 1, 11, 11}, {2, 3, 16, 13}, {1, 1, 11, 40},
-                                     {1, 2, 37, 12}, {3, 3, 29, 31}, {1, 1, 70, 65}};
-  for (const Shape& s : shapes) {
-    SCOPED_TRACE(s.str() + " seed=" + std::to_string(seed));
-    const auto xv = test::random_floats(std::size_t(s.numel()), seed, 0.f, 1.f);
-    const auto yv = noisy(xv, seed + 1, 0.2f);
-    const auto got = run_ssim(dev, s, xv, yv, 1.f);
-    const auto want = ref::ssim(xv, yv, s[0], s[1], s[2], s[3], 1.0);
-    for (std::size_t i = 0; i < want.size(); ++i) EXPECT_NEAR(got[i], want[i], 1e-4);
+  const std::vector<Shape> edges = {{1, 1, 11, 11}, {2, 3, 16, 13}, {1, 1, 11, 40},
+                                    {1, 2, 37, 12}, {3, 3, 29, 31}, {1, 1, 70, 65}};
+  test::check_op("ssim", {.seed = 803, .cases = int(edges.size()) + 4}, [&](test::OpCase& c) {
+    // Random images at least one 11×11 window large, no larger than the edges
+    // (the reference's direct windows are slow).
+    const Shape s = c.edge_or(edges, [&]() -> Shape {
+      return {c.uniform(1, 2), c.uniform(1, 3), c.uniform(11, 48), c.uniform(11, 48)};
+    });
+    c.describe("x, y " + s.str());
+    const auto xv = c.floats(s.numel(), 0.f, 1.f);
+    const auto yv = noisy(xv, std::uint32_t(c.rng()()), 0.2f);
+    const auto want = to_float(ref::ssim(xv, yv, s[0], s[1], s[2], s[3], 1.0));
+    c.expect("ssim", run_ssim(c.device, s, xv, yv, 1.f), want, {0, 1e-4});
     // Data range 255: the same images scaled by 255 give the same SSIM.
     std::vector<float> x255(xv), y255(yv);
     for (float& v : x255) v *= 255.f;
     for (float& v : y255) v *= 255.f;
-    const auto got255 = run_ssim(dev, s, x255, y255, 255.f);
-    for (std::size_t i = 0; i < want.size(); ++i) EXPECT_NEAR(got255[i], want[i], 1e-4);
-  }
+    c.expect("ssim L=255", run_ssim(c.device, s, x255, y255, 255.f), want, {0, 1e-4});
+  });
 }
 
 TEST(MetricsKernels, SsimKnownValues) {

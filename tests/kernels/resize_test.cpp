@@ -8,6 +8,7 @@
 #include <string>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -41,50 +42,47 @@ std::vector<float> host_canvas(const std::vector<float>& xv, const Case& k,
   return canvas;
 }
 
-std::string str(const Case& k, ResizeMode m) {
+std::string str(const Case& k) {
   return "[" + std::to_string(k.n) + "," + std::to_string(k.c) + "," + std::to_string(k.h) + "," +
-         std::to_string(k.w) + "] -> " + std::to_string(k.oh) + "x" + std::to_string(k.ow) +
-         " mode " + std::to_string(static_cast<int>(m));
+         std::to_string(k.w) + "] -> " + std::to_string(k.oh) + "x" + std::to_string(k.ow);
 }
 
-std::vector<Case> cases(std::uint32_t seed) {
-  std::vector<Case> v = {{1, 1, 1, 1, 1, 1},   {1, 2, 1, 1, 5, 3},    {1, 1, 6, 5, 1, 1},
-                         {2, 3, 8, 8, 4, 4},   {1, 3, 7, 9, 14, 18},  {1, 2, 17, 13, 5, 29},
-                         {1, 1, 64, 3, 11, 7}, {1, 1, 10, 10, 23, 23}};
-  std::mt19937 rng(seed);
-  auto uni = [&](int lo, int hi) { return uniform_int(rng, lo, hi); };
-  for (int i = 0; i < 5; ++i)
-    v.push_back({uni(1, 2), uni(1, 4), uni(1, 40), uni(1, 40), uni(1, 40), uni(1, 40)});
-  return v;
+std::string str(const Case& k, ResizeMode m) {
+  return str(k) + " mode " + std::to_string(static_cast<int>(m));
+}
+
+// Edge cases (1×1 in or out, up- and downscales, odd and tall sizes), then
+// random ones.
+const std::vector<Case> kEdges = {
+    {1, 1, 1, 1, 1, 1},   {1, 2, 1, 1, 5, 3},    {1, 1, 6, 5, 1, 1},   {2, 3, 8, 8, 4, 4},
+    {1, 3, 7, 9, 14, 18}, {1, 2, 17, 13, 5, 29}, {1, 1, 64, 3, 11, 7}, {1, 1, 10, 10, 23, 23}};
+
+Case draw_case(test::OpCase& c) {
+  if (c.index < int(kEdges.size())) return kEdges[std::size_t(c.index)];
+  auto uni = [&](int lo, int hi) { return std::int64_t(c.uniform(lo, hi)); };
+  return {uni(1, 2), uni(1, 4), uni(1, 40), uni(1, 40), uni(1, 40), uni(1, 40)};
 }
 
 TEST(ResizeKernels, MatchReference) {
-  Device& dev = test::device();
-  const std::uint32_t seed = 601;
-  for (const Case& k : cases(seed)) {
+  const int cases = int(kEdges.size()) + 5;
+  test::check_op("resize", {.seed = 601, .cases = cases}, [](test::OpCase& c) {
+    const Case k = draw_case(c);
+    c.describe(str(k));
+    const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
+    const auto xv = c.floats(xs.numel()), dyv = c.floats(ys.numel());
+    Tensor x = c.tensor(xs, xv), dy = c.tensor(ys, dyv);
     for (ResizeMode m : kModes) {
-      SCOPED_TRACE(str(k, m) + " seed=" + std::to_string(seed));
-      const Shape xs{k.n, k.c, k.h, k.w}, ys{k.n, k.c, k.oh, k.ow};
-      const auto xv = test::random_floats(std::size_t(xs.numel()), seed);
-      const auto dyv = test::random_floats(std::size_t(ys.numel()), seed + 1);
-      Tensor x = Tensor::from(dev, xs, xv), y = Tensor::empty(dev, ys);
-      Tensor dy = Tensor::from(dev, ys, dyv), dx = Tensor::empty(dev, xs);
-      Stream s(dev);
+      const std::string mode = " mode " + std::to_string(static_cast<int>(m));
+      Tensor y = c.empty(ys), dx = c.empty(xs);
+      Stream s(c.device);
       kernels::resize(s, x, m, y);
       kernels::resize_backward(s, dy, m, dx);
       s.run();
-      const auto want = ref::resize(xv, k.n * k.c, k.h, k.w, k.oh, k.ow, m);
-      const auto got = y.download();
-      for (std::size_t i = 0; i < want.size(); ++i) {
-        ASSERT_NEAR(got[i], want[i], 1e-5 * (1 + std::fabs(want[i]))) << "y at " << i;
-      }
-      const auto dwant = ref::resize_backward(dyv, k.n * k.c, k.h, k.w, k.oh, k.ow, m);
-      const auto dgot = dx.download();
-      for (std::size_t i = 0; i < dwant.size(); ++i) {
-        ASSERT_NEAR(dgot[i], dwant[i], 1e-4 * (1 + std::fabs(dwant[i]))) << "dx at " << i;
-      }
+      c.expect("y" + mode, y, ref::resize(xv, k.n * k.c, k.h, k.w, k.oh, k.ow, m), {1e-5, 1e-5});
+      c.expect("dx" + mode, dx, ref::resize_backward(dyv, k.n * k.c, k.h, k.w, k.oh, k.ow, m),
+               {1e-4, 1e-4});
     }
-  }
+  });
 }
 
 // One pass over a virtual zero-padded canvas against the reference resize of

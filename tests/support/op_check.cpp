@@ -13,10 +13,10 @@
 namespace vkjr2::test {
 namespace {
 
-bool close(float got, float want, Tol tol) {
+bool close(float got, float want, double bound) {
   if (std::isnan(want) || std::isnan(got)) return std::isnan(want) && std::isnan(got);
   if (std::isinf(want) || std::isinf(got)) return got == want;
-  return std::fabs(double(got) - double(want)) <= tol.atol + tol.rtol * std::fabs(double(want));
+  return std::fabs(double(got) - double(want)) <= bound;
 }
 
 std::vector<std::uint32_t> bits_of(std::span<const float> v) {
@@ -76,6 +76,13 @@ void OpCase::expect(const std::string& name, const std::vector<float>& got,
   outputs_.push_back({name, bits_of(got)});
 }
 
+void OpCase::expect(const std::string& name, const Tensor& got, const std::vector<float>& want,
+                    std::span<const double> bound) {
+  const std::vector<float> g = got.download();
+  expect_all_close(what_.empty() ? name : name + " (" + what_ + ")", g, want, bound);
+  outputs_.push_back({name, bits_of(g)});
+}
+
 void OpCase::expect_equal(const std::string& name, const Tensor& got,
                           const std::vector<std::int32_t>& want) {
   std::vector<std::int32_t> v(std::size_t(got.numel()));
@@ -92,8 +99,12 @@ Tol peak_relative(std::span<const float> want, double rtol) {
   return {rtol, rtol * (1e-2 * scale + 1e-37)};
 }
 
-void expect_all_close(std::string_view name, std::span<const float> got,
-                      std::span<const float> want, Tol tol) {
+namespace {
+
+// One failure per output: the first and the worst element and the count.
+template <class Bound>
+void expect_within(std::string_view name, std::span<const float> got, std::span<const float> want,
+                   Bound bound, const std::string& rule) {
   if (got.size() != want.size()) {
     ADD_FAILURE() << name << ": " << got.size() << " values, the reference has " << want.size();
     return;
@@ -101,18 +112,42 @@ void expect_all_close(std::string_view name, std::span<const float> got,
   std::size_t misses = 0, first = 0, worst = 0;
   double worst_excess = -1;
   for (std::size_t i = 0; i < got.size(); ++i) {
-    if (close(got[i], want[i], tol)) continue;
+    const double b = bound(i);
+    if (close(got[i], want[i], b)) continue;
     if (misses++ == 0) first = i;
-    const double bound = tol.atol + tol.rtol * std::fabs(double(want[i]));
     const double err = std::fabs(double(got[i]) - double(want[i]));
-    const double excess = std::isfinite(err) ? err / bound : INFINITY;
+    const double excess = std::isfinite(err) ? err / b : INFINITY;
     if (excess > worst_excess) worst_excess = excess, worst = i;
   }
   if (misses == 0) return;
-  ADD_FAILURE() << name << ": " << misses << " of " << got.size()
-                << " values off the reference (rtol " << tol.rtol << ", atol " << tol.atol
-                << "); first at " << first << ": " << got[first] << " vs " << want[first]
-                << "; worst at " << worst << ": " << got[worst] << " vs " << want[worst];
+  ADD_FAILURE() << name << ": " << misses << " of " << got.size() << " values off the reference ("
+                << rule << "); first at " << first << ": " << got[first] << " vs " << want[first]
+                << "; worst at " << worst << ": " << got[worst] << " vs " << want[worst]
+                << " (bound " << bound(worst) << ")";
+}
+
+}  // namespace
+
+void expect_all_close(std::string_view name, std::span<const float> got,
+                      std::span<const float> want, Tol tol) {
+  std::ostringstream rule;
+  rule << "rtol " << tol.rtol << ", atol " << tol.atol;
+  expect_within(
+      name, got, want,
+      [&](std::size_t i) {
+        return i < want.size() ? tol.atol + tol.rtol * std::fabs(double(want[i])) : 0.0;
+      },
+      rule.str());
+}
+
+void expect_all_close(std::string_view name, std::span<const float> got,
+                      std::span<const float> want, std::span<const double> bound) {
+  if (bound.size() != want.size()) {
+    ADD_FAILURE() << name << ": " << bound.size() << " bounds for " << want.size() << " values";
+    return;
+  }
+  expect_within(
+      name, got, want, [&](std::size_t i) { return bound[i]; }, "per-element bound");
 }
 
 void check_op(std::string_view op, const OpCheck& options,

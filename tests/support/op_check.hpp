@@ -85,6 +85,10 @@ class OpCase {
               Tol tol = {});
   void expect(const std::string& name, const std::vector<float>& got,
               const std::vector<float>& want, Tol tol = {});
+  // |got[i] − want[i]| ≤ bound[i]: for outputs whose rounding follows
+  // another quantity (a dot product's Σ|x||w|), not |want|.
+  void expect(const std::string& name, const Tensor& got, const std::vector<float>& want,
+              std::span<const double> bound);
   // Integer outputs (indices, labels): equal, element by element.
   void expect_equal(const std::string& name, const Tensor& got,
                     const std::vector<std::int32_t>& want);
@@ -117,5 +121,7 @@ void check_op(std::string_view op, const OpCheck& options,
 // and the number of misses.
 void expect_all_close(std::string_view name, std::span<const float> got,
                       std::span<const float> want, Tol tol = {});
+void expect_all_close(std::string_view name, std::span<const float> got,
+                      std::span<const float> want, std::span<const double> bound);
 
 }  // namespace vkjr2::test
