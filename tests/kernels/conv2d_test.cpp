@@ -13,6 +13,7 @@
 #include <sstream>
 #include <string>
 
+#include "support/expect_error.hpp"
 #include "support/gradcheck.hpp"
 #include "support/op_check.hpp"
 #include "support/test_device.hpp"
@@ -602,45 +603,41 @@ TEST(Conv2d, BadInputsAreClearErrors) {
   Tensor w = Tensor::empty(dev, {8, 4, 3, 3});
   Tensor y = Tensor::empty(dev, {1, 8, 6, 6});
   Conv2dParams p;
-  auto expect_message = [](auto&& f, const char* needle) {
-    try {
-      f();
-      ADD_FAILURE() << "no exception; expected one mentioning '" << needle << "'";
-    } catch (const InvalidArgument& e) {
-      EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << e.what();
-    }
-  };
   Tensor w_bad = Tensor::empty(dev, {8, 3, 3, 3});
-  expect_message([&] { kernels::conv2d(s, x, w_bad, nullptr, y, p); }, "input channels");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w_bad, nullptr, y, p); },
+                                "input channels");
   Tensor y_bad = Tensor::empty(dev, {1, 8, 8, 8});
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y_bad, p); }, "expected");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y_bad, p); }, "expected");
   Tensor b_bad = Tensor::empty(dev, {7});
-  expect_message([&] { kernels::conv2d(s, x, w, &b_bad, y, p); }, "bias");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, &b_bad, y, p); }, "bias");
   Tensor w_other = Tensor::empty(dev, {8, 4, 1, 1});
   kernels::Conv2dPlan plan(dev, x.shape(), w.shape(), p);
-  expect_message([&] { plan.pack(s, w_other); }, "weight");
+  test::expect_invalid_argument([&] { plan.pack(s, w_other); }, "weight");
   Tensor w_3d = Tensor::empty(dev, {8, 4, 9});
-  expect_message([&] { plan.pack(s, w_3d); }, "weight");
-  expect_message(
+  test::expect_invalid_argument([&] { plan.pack(s, w_3d); }, "weight");
+  test::expect_invalid_argument(
       [&] { plan.run(s, kernels::Planes::of(x), w_other, nullptr, kernels::Planes::of(y)); },
       "weight");
   Tensor empty = Tensor::empty(dev, {0, 4, 8, 8});
-  expect_message([&] { kernels::conv2d(s, empty, w, nullptr, y, p); }, "empty");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, empty, w, nullptr, y, p); }, "empty");
   Conv2dParams g3 = p;
   g3.groups = 3;
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, g3); }, "groups");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y, g3); }, "groups");
   Conv2dParams s0 = p;
   s0.stride_x = 0;
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, s0); }, "stride");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y, s0); }, "stride");
   Conv2dParams forced = p;
   forced.algo = Conv2dAlgo::pointwise;
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, forced); }, "pointwise");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y, forced); }, "pointwise");
   Tensor big_w = Tensor::empty(dev, {8, 4, 11, 11});
-  expect_message([&] { kernels::conv2d_output_shape(x.shape(), big_w.shape(), p); }, "exceeds");
+  test::expect_invalid_argument([&] { kernels::conv2d_output_shape(x.shape(), big_w.shape(), p); },
+                                "exceeds");
   Tensor res_wide = Tensor::empty(dev, {1, 9, 6, 6});
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, &res_wide); }, "residual");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y, p, &res_wide); },
+                                "residual");
   Tensor res_small = Tensor::empty(dev, {1, 8, 5, 6});
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, p, &res_small); }, "residual");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y, p, &res_small); },
+                                "residual");
   Conv2dParams same = p;
   same.pad = {1, 1, 1, 1};
   using kernels::Planes;
@@ -648,38 +645,47 @@ TEST(Conv2d, BadInputsAreClearErrors) {
       s, x.shape(), kernels::Conv2dPlan(dev, x.shape(), w.shape(), same).input_layout());
   ASSERT_TRUE(xp.padded());
   // Padded for another convolution (p pads nothing: another geometry).
-  expect_message([&] { plan.run(s, xp, w, nullptr, Planes::of(y)); }, "padded input");
+  test::expect_invalid_argument([&] { plan.run(s, xp, w, nullptr, Planes::of(y)); },
+                                "padded input");
   const Planes y_too_small{xp.data, y.shape(), xp.layout};  // 4 planes for y's 8
-  expect_message([&] { plan.run(s, Planes::of(x), w, nullptr, y_too_small); }, "padded output");
+  test::expect_invalid_argument([&] { plan.run(s, Planes::of(x), w, nullptr, y_too_small); },
+                                "padded output");
   Tensor w1x1 = Tensor::empty(dev, {8, 4, 1, 1});
   Tensor y8 = Tensor::empty(dev, {1, 8, 8, 8});
   const kernels::Conv2dPlan pointwise(dev, x.shape(), w1x1.shape(), p);
   ASSERT_EQ(pointwise.algo(), Conv2dAlgo::pointwise);
   ASSERT_TRUE(pointwise.input_layout().plain());  // a 1×1 conv reads no padded input
-  expect_message([&] { pointwise.run(s, xp, w1x1, nullptr, Planes::of(y8)); }, "padded input");
+  test::expect_invalid_argument([&] { pointwise.run(s, xp, w1x1, nullptr, Planes::of(y8)); },
+                                "padded input");
   // xp holds [1, 4, 8, 8]: no residual for a y of 8 channels at 6×6.
-  expect_message([&] { plan.run(s, Planes::of(x), w, nullptr, Planes::of(y), &xp); }, "residual");
+  test::expect_invalid_argument([&] { plan.run(s, Planes::of(x), w, nullptr, Planes::of(y), &xp); },
+                                "residual");
   Tensor w_dw = Tensor::empty(dev, {4, 1, 3, 3});
   Tensor y_dw = Tensor::empty(dev, {1, 4, 8, 8});
   Conv2dParams dwp = same;
   dwp.groups = 4;  // a depthwise conv takes no padded residual
   const kernels::Conv2dPlan depthwise(dev, x.shape(), w_dw.shape(), dwp);
   ASSERT_EQ(depthwise.algo(), Conv2dAlgo::depthwise);
-  expect_message([&] { depthwise.run(s, Planes::of(x), w_dw, nullptr, Planes::of(y_dw), &xp); },
-                 "plain residuals");
+  test::expect_invalid_argument(
+      [&] { depthwise.run(s, Planes::of(x), w_dw, nullptr, Planes::of(y_dw), &xp); },
+      "plain residuals");
   const kernels::Conv2dPlan empty_plan;
-  expect_message([&] { empty_plan.run(s, Planes::of(x), w, nullptr, Planes::of(y)); }, "empty");
+  test::expect_invalid_argument(
+      [&] { empty_plan.run(s, Planes::of(x), w, nullptr, Planes::of(y)); }, "empty");
   Conv2dParams relu_in = p;
   relu_in.relu_input = true;
   relu_in.algo = Conv2dAlgo::blocked;
-  expect_message([&] { kernels::conv2d(s, x, w, nullptr, y, relu_in); }, "input ReLU");
+  test::expect_invalid_argument([&] { kernels::conv2d(s, x, w, nullptr, y, relu_in); },
+                                "input ReLU");
   relu_in.algo = Conv2dAlgo::auto_select;
-  expect_message([&] { kernels::conv2d_backward_data(s, y, w, x, relu_in); }, "forward only");
-  expect_message([&] { kernels::conv2d_backward_weight(s, x, y, w, nullptr, relu_in); },
-                 "forward only");
+  test::expect_invalid_argument([&] { kernels::conv2d_backward_data(s, y, w, x, relu_in); },
+                                "forward only");
+  test::expect_invalid_argument(
+      [&] { kernels::conv2d_backward_weight(s, x, y, w, nullptr, relu_in); }, "forward only");
   Tensor dy_bad = Tensor::empty(dev, {1, 8, 5, 6});
-  expect_message([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
-  expect_message([&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");
+  test::expect_invalid_argument([&] { kernels::conv2d_backward_data(s, dy_bad, w, x, p); }, "dy");
+  test::expect_invalid_argument(
+      [&] { kernels::conv2d_backward_weight(s, x, dy_bad, w, nullptr, p); }, "dy");
 }
 
 TEST(Conv2d, NaNPropagates) {

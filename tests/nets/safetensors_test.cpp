@@ -1,39 +1,18 @@
 #include <vkjr2/nets/safetensors.hpp>
 
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <bit>
 #include <cstring>
 #include <filesystem>
 #include <string>
 
+#include "support/temp_dir.hpp"
+
 namespace vkjr2::nets {
 namespace {
 
 namespace fs = std::filesystem;
-
-// A fresh directory per test, removed afterwards.
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("vkjr2_st_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 std::vector<std::byte> to_bytes(std::string_view s) {
   std::vector<std::byte> out(s.size());
@@ -86,8 +65,8 @@ TEST(Safetensors, ExactBytesOfASmallFile) {
 }
 
 TEST(Safetensors, RoundTripEveryDTypeWithMetadata) {
-  TempDir dir;
-  const fs::path path = dir.path() / "all.safetensors";
+  test::TempDir dir;
+  const fs::path path = dir.path / "all.safetensors";
   std::vector<SafetensorsRecord> recs;
   const std::vector<float> f = {0.5f, -1.25f, 3.f, 1e-8f, -0.f, 7.f};
   recs.push_back(SafetensorsRecord::f32("w/f32", {2, 3}, f));
@@ -167,8 +146,8 @@ TEST(Safetensors, ReadsOtherWritersLayouts) {
 }
 
 TEST(Safetensors, FloatMapConvenience) {
-  TempDir dir;
-  const fs::path path = dir.path() / "m.safetensors";
+  test::TempDir dir;
+  const fs::path path = dir.path / "m.safetensors";
   std::map<std::string, HostTensor> in;
   in["conv/w"] = HostTensor{{3, 3, 1, 2}, std::vector<float>(18)};
   for (std::size_t i = 0; i < 18; ++i) in["conv/w"].values[i] = float(i) * 0.25f - 2.f;
@@ -253,8 +232,8 @@ TEST(Safetensors, RejectsTruncatedFiles) {
 }
 
 TEST(Safetensors, ErrorsNameTheFileAndTensor) {
-  TempDir dir;
-  const fs::path path = dir.path() / "bad.safetensors";
+  test::TempDir dir;
+  const fs::path path = dir.path / "bad.safetensors";
   const auto bytes = make_file(R"({"layer1/w": {"dtype":"F32","shape":[3],"data_offsets":[0,8]}})",
                                std::vector<std::byte>(8));
   write_file_atomic(path, bytes, "test");
@@ -267,12 +246,12 @@ TEST(Safetensors, ErrorsNameTheFileAndTensor) {
     EXPECT_NE(msg.find("'layer1/w'"), std::string::npos) << msg;
     EXPECT_NE(msg.find("needs 12"), std::string::npos) << msg;
   }
-  EXPECT_THROW(read_safetensors(dir.path() / "missing.safetensors"), Error);
+  EXPECT_THROW(read_safetensors(dir.path / "missing.safetensors"), Error);
 }
 
 TEST(Safetensors, WriteIsAtomicAndValidatesRecords) {
-  TempDir dir;
-  const fs::path path = dir.path() / "ckpt.safetensors";
+  test::TempDir dir;
+  const fs::path path = dir.path / "ckpt.safetensors";
   const std::vector<float> v = {1.f};
   const std::vector<SafetensorsRecord> good = {SafetensorsRecord::f32("a", {1}, v)};
   write_safetensors(path, good);
@@ -288,11 +267,11 @@ TEST(Safetensors, WriteIsAtomicAndValidatesRecords) {
   EXPECT_THROW(write_safetensors(path, bad_utf8), InvalidArgument);
   EXPECT_THROW(SafetensorsRecord::f32("n", {3}, v), InvalidArgument);
   // Unwritable destination: nothing left behind.
-  EXPECT_THROW(write_safetensors(dir.path() / "no_such_dir" / "x.safetensors", good), Error);
+  EXPECT_THROW(write_safetensors(dir.path / "no_such_dir" / "x.safetensors", good), Error);
 
   EXPECT_EQ(read_file_bytes(path, "test"), before);
   std::size_t files = 0;
-  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path())) ++files;
+  for ([[maybe_unused]] const auto& e : fs::directory_iterator(dir.path)) ++files;
   EXPECT_EQ(files, 1u) << "a temporary file was left behind";
 }
 

@@ -2,7 +2,6 @@
 
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
-#include <unistd.h>
 
 #include <cmath>
 #include <cstdlib>
@@ -10,6 +9,8 @@
 #include <filesystem>
 #include <fstream>
 #include <string>
+
+#include "support/temp_dir.hpp"
 
 namespace vkjr2::nets {
 namespace {
@@ -22,27 +23,6 @@ fs::path model_dir() {
   const fs::path cache = env && *env ? fs::path(env) : fs::path(home ? home : "") / ".cache/vkjr2";
   return cache / "face-api-1.7.15" / "model";
 }
-
-class TempDir {
- public:
-  TempDir() {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    path_ = fs::temp_directory_path() /
-            ("vkjr2_tfjs_" + std::string(info->name()) + "_" + std::to_string(::getpid()));
-    fs::remove_all(path_);
-    fs::create_directories(path_);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-  ~TempDir() {
-    std::error_code ec;
-    fs::remove_all(path_, ec);
-  }
-  const fs::path& path() const { return path_; }
-
- private:
-  fs::path path_;
-};
 
 void write_text(const fs::path& p, std::string_view s) {
   std::ofstream out(p, std::ios::binary);
@@ -132,7 +112,7 @@ TEST(TfjsWeights, TinyFaceDetectorModel) {
 TEST(TfjsWeights, FaceLandmark68Model) { check_real_model("face_landmark_68_model", -1, -1, 0); }
 
 TEST(TfjsWeights, DecodesEveryDTypeAcrossShardsAndGroups) {
-  TempDir dir;
+  test::TempDir dir;
   // Group 0: two shards whose boundary falls inside a tensor.
   std::string g0;
   append<float>(g0, {1.5f, -2.f, 3.25f, 0.f});                  // f32 [2,2]
@@ -141,11 +121,11 @@ TEST(TfjsWeights, DecodesEveryDTypeAcrossShardsAndGroups) {
   append<std::uint16_t>(g0, {0x3c00, 0xc000, 0x3555, 0x7c00});  // float16 [4]
   append<std::int32_t>(g0, {-5, 1 << 20});                      // int32 [2]
   append<std::uint8_t>(g0, {3, 4});                             // int32 uint8-quantized [2]
-  write_text(dir.path() / "g0-1.bin", g0.substr(0, 9));
-  write_text(dir.path() / "g0-2.bin", g0.substr(9));
+  write_text(dir.path / "g0-1.bin", g0.substr(0, 9));
+  write_text(dir.path / "g0-2.bin", g0.substr(9));
   std::string g1;
   append<float>(g1, {42.f});  // scalar
-  write_text(dir.path() / "g1.bin", g1);
+  write_text(dir.path / "g1.bin", g1);
   const std::string manifest = R"([
     {"paths": ["g0-1.bin", "g0-2.bin"], "weights": [
       {"name": "f", "shape": [2, 2], "dtype": "float32"},
@@ -158,8 +138,8 @@ TEST(TfjsWeights, DecodesEveryDTypeAcrossShardsAndGroups) {
       {"name": "iq", "shape": [2], "dtype": "int32",
        "quantization": {"dtype": "uint8", "scale": 0.5, "min": 0.2}}]},
     {"paths": ["g1.bin"], "weights": [{"name": "s", "shape": [], "dtype": "float32"}]}])";
-  write_text(dir.path() / "m.json", manifest);
-  const TfjsWeights w = load_tfjs_weights(dir.path() / "m.json");
+  write_text(dir.path / "m.json", manifest);
+  const TfjsWeights w = load_tfjs_weights(dir.path / "m.json");
   ASSERT_EQ(w.size(), 7u);
   EXPECT_EQ(w.entries()[0].first, "f");
   EXPECT_EQ(w.entries()[6].first, "s");
@@ -177,7 +157,7 @@ TEST(TfjsWeights, DecodesEveryDTypeAcrossShardsAndGroups) {
   EXPECT_EQ(w.at("s").values, (std::vector<float>{42.f}));
   EXPECT_TRUE(w.at("s").shape.empty());
   EXPECT_EQ(w.parameter_count(), 4 + 3 + 3 + 4 + 2 + 2 + 1);
-  EXPECT_EQ(w.source(), (dir.path() / "m.json").string());
+  EXPECT_EQ(w.source(), (dir.path / "m.json").string());
 
   // The same through the in-memory entry point.
   const auto span = [](const std::string& s) {
@@ -251,21 +231,20 @@ TEST(TfjsWeights, ErrorPaths) {
   };
   for (const auto& c : cases) {
     SCOPED_TRACE(c.what);
-    TempDir dir;
-    write_text(dir.path() / "m.json", c.manifest);
-    if (c.shard_bytes != SIZE_MAX)
-      write_text(dir.path() / "w.bin", std::string(c.shard_bytes, '\0'));
+    test::TempDir dir;
+    write_text(dir.path / "m.json", c.manifest);
+    if (c.shard_bytes != SIZE_MAX) write_text(dir.path / "w.bin", std::string(c.shard_bytes, '\0'));
     try {
-      load_tfjs_weights(dir.path() / "m.json");
+      load_tfjs_weights(dir.path / "m.json");
       ADD_FAILURE() << "no error";
     } catch (const Error& e) {
       const std::string msg = e.what();
       EXPECT_NE(msg.find(c.expect), std::string::npos) << msg;
-      EXPECT_NE(msg.find((dir.path() / "m.json").string()), std::string::npos) << msg;
+      EXPECT_NE(msg.find((dir.path / "m.json").string()), std::string::npos) << msg;
     }
   }
-  TempDir dir;
-  EXPECT_THROW(load_tfjs_weights(dir.path() / "absent.json"), Error);
+  test::TempDir dir;
+  EXPECT_THROW(load_tfjs_weights(dir.path / "absent.json"), Error);
   // One byte block per group.
   EXPECT_THROW(parse_tfjs_weights(group(f32x4), {}), InvalidArgument);
 }

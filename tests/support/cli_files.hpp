@@ -1,31 +1,14 @@
-// Files for command-runner tests: a fresh temporary folder per test and the
-// JSON a command printed.
+// Files for command-runner tests: a fresh temporary folder per test
+// (support/temp_dir.hpp) and the JSON a command printed.
 #pragma once
 
 #include <nlohmann/json.hpp>
-#include <unistd.h>
 
-#include <filesystem>
 #include <string>
 
-namespace vkjr2::test {
+#include "support/temp_dir.hpp"
 
-// A fresh folder per test, removed at the end.
-struct TempDir {
-  std::filesystem::path path;
-  explicit TempDir(const std::string& tag)
-      : path(std::filesystem::temp_directory_path() /
-             ("vkjr2_cli_" + tag + "_" + std::to_string(::getpid()))) {
-    std::filesystem::remove_all(path);
-    std::filesystem::create_directories(path);
-  }
-  ~TempDir() {
-    std::error_code ec;
-    std::filesystem::remove_all(path, ec);
-  }
-  TempDir(const TempDir&) = delete;
-  TempDir& operator=(const TempDir&) = delete;
-};
+namespace vkjr2::test {
 
 // The first JSON value in a command's output (null when there is none);
 // the command's own message lines ("vkjr2: warning: ...") are skipped.
