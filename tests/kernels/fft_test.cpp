@@ -11,6 +11,7 @@
 #include <string>
 
 #include "support/gradcheck.hpp"
+#include "support/op_check.hpp"
 #include "support/test_device.hpp"
 
 namespace vkjr2 {
@@ -86,8 +87,8 @@ std::vector<double> fftw_c2r(const std::vector<float>& spectrum, const Case& c) 
   return to_double(out);
 }
 
-std::vector<float> run_plan(const FftPlan& plan, const std::vector<float>& x, bool inverse) {
-  Device& dev = test::device();
+std::vector<float> run_plan(const FftPlan& plan, const std::vector<float>& x, bool inverse,
+                            Device& dev = test::device()) {
   const Shape& in_shape = inverse ? plan.spectrum_shape() : plan.signal_shape();
   const Shape& out_shape = inverse ? plan.signal_shape() : plan.spectrum_shape();
   Tensor in = Tensor::from(dev, in_shape, x);
@@ -104,16 +105,22 @@ std::vector<float> run_plan(const FftPlan& plan, const std::vector<float>& x, bo
 
 constexpr double kTol = 1e-5;  // relative L2 vs FFTW (fp32 both)
 
+// The listed cases, then random ones with supported lengths up to 400.
+Case draw_case(test::OpCase& c, const std::vector<Case>& edges) {
+  if (c.index < int(edges.size())) return edges[std::size_t(c.index)];
+  return {c.uniform(1, 3), kernels::fft_next_length(c.uniform(1, 400)),
+          kernels::fft_next_length(c.uniform(1, 400))};
+}
+
 TEST(Fft, C2cMatchesFftw) {
-  const std::uint32_t seed = 31;
-  for (const Case& c : kC2cCases) {
-    SCOPED_TRACE("shape=" + c.str() + " seed=" + std::to_string(seed));
-    const auto x =
-        test::random_floats(std::size_t(2 * c.b * c.h * c.w), seed + std::uint32_t(c.h * 7 + c.w));
-    const FftPlan plan(test::device(), {c.b, c.h, c.w}, FftKind::c2c, FftNorm::none);
-    EXPECT_LE(rel_l2(run_plan(plan, x, false), fftw_c2c(x, c, false)), kTol) << "forward";
-    EXPECT_LE(rel_l2(run_plan(plan, x, true), fftw_c2c(x, c, true)), kTol) << "inverse";
-  }
+  test::check_op("fft c2c", {.seed = 31, .cases = int(kC2cCases.size()) + 4}, [](test::OpCase& c) {
+    const Case k = draw_case(c, kC2cCases);
+    c.describe("shape " + k.str());
+    const auto x = c.floats(2 * k.b * k.h * k.w);
+    const FftPlan plan(c.device, {k.b, k.h, k.w}, FftKind::c2c, FftNorm::none);
+    c.expect_rel_l2("forward", run_plan(plan, x, false, c.device), fftw_c2c(x, k, false), kTol);
+    c.expect_rel_l2("inverse", run_plan(plan, x, true, c.device), fftw_c2c(x, k, true), kTol);
+  });
 }
 
 TEST(Fft, ReferenceAgreesWithFftwAndDevice) {
@@ -152,20 +159,21 @@ TEST(Fft, InverseOfForwardIsIdentityForEveryNorm) {
 }
 
 TEST(Fft, R2cAndC2rMatchFftw) {
-  const std::uint32_t seed = 2024;
-  for (const Case& c : kRealCases) {
-    SCOPED_TRACE("shape=" + c.str() + " seed=" + std::to_string(seed));
-    const auto x = test::random_floats(std::size_t(c.b * c.h * c.w), seed + std::uint32_t(c.w));
-    const FftPlan plan(test::device(), {c.b, c.h, c.w}, FftKind::r2c, FftNorm::none);
-    const auto spectrum = run_plan(plan, x, false);
-    EXPECT_LE(rel_l2(spectrum, fftw_r2c(x, c)), kTol) << "r2c";
-    // c2r of a consistent (Hermitian) spectrum; unnormalized like FFTW.
-    const auto back = run_plan(plan, spectrum, true);
-    EXPECT_LE(rel_l2(back, fftw_c2r(spectrum, c)), kTol) << "c2r";
-    std::vector<double> want(x.size());
-    for (std::size_t i = 0; i < x.size(); ++i) want[i] = double(c.h * c.w) * x[i];
-    EXPECT_LE(rel_l2(back, want), kTol) << "c2r(r2c(x)) = N x";
-  }
+  test::check_op("fft r2c/c2r", {.seed = 2024, .cases = int(kRealCases.size()) + 4},
+                 [](test::OpCase& c) {
+                   const Case k = draw_case(c, kRealCases);
+                   c.describe("shape " + k.str());
+                   const auto x = c.floats(k.b * k.h * k.w);
+                   const FftPlan plan(c.device, {k.b, k.h, k.w}, FftKind::r2c, FftNorm::none);
+                   const auto spectrum = run_plan(plan, x, false, c.device);
+                   c.expect_rel_l2("r2c", spectrum, fftw_r2c(x, k), kTol);
+                   // c2r of a consistent (Hermitian) spectrum; unnormalized like FFTW.
+                   const auto back = run_plan(plan, spectrum, true, c.device);
+                   c.expect_rel_l2("c2r", back, fftw_c2r(spectrum, k), kTol);
+                   std::vector<double> want(x.size());
+                   for (std::size_t i = 0; i < x.size(); ++i) want[i] = double(k.h * k.w) * x[i];
+                   c.expect_rel_l2("c2r(r2c(x)) = N x", back, want, kTol);
+                 });
 }
 
 TEST(Fft, C2rIgnoresImaginaryPartsOfRealBins) {

@@ -83,6 +83,24 @@ void OpCase::expect(const std::string& name, const Tensor& got, const std::vecto
   outputs_.push_back({name, bits_of(g)});
 }
 
+void OpCase::expect_rel_l2(const std::string& name, const std::vector<float>& got,
+                           std::span<const double> want, double tol) {
+  const std::string what = what_.empty() ? name : name + " (" + what_ + ")";
+  if (got.size() != want.size()) {
+    ADD_FAILURE() << what << ": " << got.size() << " values, the reference has " << want.size();
+    return;
+  }
+  double num = 0, den = 0;
+  for (std::size_t i = 0; i < got.size(); ++i) {
+    const double d = double(got[i]) - want[i];
+    num += d * d;
+    den += want[i] * want[i];
+  }
+  const double rel = std::sqrt(num / std::max(den, 1e-300));
+  EXPECT_LE(rel, tol) << what << ": relative L2 error";
+  outputs_.push_back({name, bits_of(got)});
+}
+
 void OpCase::expect_equal(const std::string& name, const Tensor& got,
                           const std::vector<std::int32_t>& want) {
   std::vector<std::int32_t> v(std::size_t(got.numel()));

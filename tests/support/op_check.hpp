@@ -89,6 +89,10 @@ class OpCase {
   // another quantity (a dot product's Σ|x||w|), not |want|.
   void expect(const std::string& name, const Tensor& got, const std::vector<float>& want,
               std::span<const double> bound);
+  // ‖got − want‖₂ ≤ tol·‖want‖₂: for transforms compared with a peer library
+  // (an FFT against FFTW), whose rounding spreads over the whole output.
+  void expect_rel_l2(const std::string& name, const std::vector<float>& got,
+                     std::span<const double> want, double tol);
   // Integer outputs (indices, labels): equal, element by element.
   void expect_equal(const std::string& name, const Tensor& got,
                     const std::vector<std::int32_t>& want);
