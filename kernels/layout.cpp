@@ -266,4 +266,58 @@ void channel_affine_backward(Stream& stream, const Tensor& x, const Tensor& scal
       groups_1d(static_cast<std::uint64_t>(c), device.info()));
 }
 
+namespace {
+
+// Mirrors the push block of shaders/pixel_shuffle.comp.
+struct ShufflePush {
+  std::uint32_t h, w;
+};
+
+// small: [N, C·r², H, W]; big: [N, C, H·r, W·r]. unshuffle: big → small.
+void pixel_shuffle_dispatch(Stream& stream, const char* op, bool unshuffle, const Tensor& x, int r,
+                            const Tensor& y) {
+  static const KernelDef k{
+      "pixel_shuffle", {BindingKind::texel, BindingKind::storage}, sizeof(ShufflePush)};
+  const Tensor& small = unshuffle ? y : x;
+  const Tensor& big = unshuffle ? x : y;
+  const char* small_name = unshuffle ? "y" : "x";
+  const char* big_name = unshuffle ? "x" : "y";
+  require_f32_rank(small, 4, op, small_name);
+  require_f32_rank(big, 4, op, big_name);
+  if (r < 1 || r > 16) {
+    throw InvalidArgument(op, "factor r = " + std::to_string(r), "use a factor in [1, 16]");
+  }
+  const Shape& s = small.shape();
+  const std::int64_t rr = std::int64_t(r) * r;
+  if (s[1] % rr != 0) {
+    throw InvalidArgument(op,
+                          std::string(small_name) + " " + s.str() + " has " + std::to_string(s[1]) +
+                              " channels, not a multiple of r² = " + std::to_string(rr),
+                          "give it C·r² channels");
+  }
+  require_shape(big, Shape{s[0], s[1] / rr, s[2] * r, s[3] * r}, op, big_name);
+  const Shape& b = big.shape();
+  const DeviceInfo& info = stream.device().info();
+  if (b[2] > info.max_workgroup_count[1] || b[0] * b[1] > info.max_workgroup_count[2]) {
+    throw InvalidArgument(
+        op, std::string(big_name) + " " + b.str() + " needs more workgroups than the device allows",
+        "split the batch or the channels into smaller tensors");
+  }
+  stream.dispatch(k, {texel(x), out(y)},
+                  ShufflePush{static_cast<std::uint32_t>(s[2]), static_cast<std::uint32_t>(s[3])},
+                  Groups{div_up(std::uint64_t(b[3]), 256), static_cast<std::uint32_t>(b[2]),
+                         static_cast<std::uint32_t>(b[0] * b[1])},
+                  {static_cast<std::uint32_t>(r), unshuffle ? 1u : 0u});
+}
+
+}  // namespace
+
+void pixel_shuffle(Stream& stream, const Tensor& x, int r, const Tensor& y) {
+  pixel_shuffle_dispatch(stream, "pixel_shuffle", false, x, r, y);
+}
+
+void pixel_unshuffle(Stream& stream, const Tensor& x, int r, const Tensor& y) {
+  pixel_shuffle_dispatch(stream, "pixel_unshuffle", true, x, r, y);
+}
+
 }  // namespace vkjr2::kernels

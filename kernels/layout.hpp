@@ -46,4 +46,12 @@ void channel_affine(Stream& stream, const Tensor& x, const Tensor& scale, const 
 void channel_affine_backward(Stream& stream, const Tensor& x, const Tensor& scale, const Tensor& dy,
                              const Tensor* dx, const Tensor* dscale, const Tensor* dbias);
 
+// Pixel shuffle with factor r ≥ 1 (PyTorch's PixelShuffle):
+//   y[n, c, h·r + i, w·r + j] = x[n, c·r² + i·r + j, h, w],
+// x: [N, C·r², H, W] → y: [N, C, H·r, W·r]. pixel_unshuffle is its inverse
+// (y: [N, C, H·r, W·r] → x) and each is the other's backward: a
+// permutation, so dx = pixel_unshuffle(dy) and vice versa.
+void pixel_shuffle(Stream& stream, const Tensor& x, int r, const Tensor& y);
+void pixel_unshuffle(Stream& stream, const Tensor& x, int r, const Tensor& y);
+
 }  // namespace vkjr2::kernels

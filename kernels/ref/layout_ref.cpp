@@ -70,4 +70,35 @@ void channel_affine_backward(std::span<const float> x, Nchw s, std::span<const f
   dbias.assign(db.begin(), db.end());
 }
 
+namespace {
+
+// Index in small [n, c·r², h, w] and in big [n, c, h·r, w·r] of each element.
+template <class F>
+void for_each_shuffled(Nchw small, int r, F f) {
+  const std::int64_t c = small.c / (r * r), bh = small.h * r, bw = small.w * r;
+  for (std::int64_t n = 0; n < small.n; ++n)
+    for (std::int64_t k = 0; k < c; ++k)
+      for (std::int64_t y = 0; y < bh; ++y)
+        for (std::int64_t x = 0; x < bw; ++x) {
+          const std::int64_t ch = (k * r + y % r) * r + x % r;
+          const std::int64_t si = ((n * small.c + ch) * small.h + y / r) * small.w + x / r;
+          const std::int64_t bi = ((n * c + k) * bh + y) * bw + x;
+          f(static_cast<std::size_t>(si), static_cast<std::size_t>(bi));
+        }
+}
+
+}  // namespace
+
+std::vector<float> pixel_shuffle(std::span<const float> x, Nchw small, int r) {
+  std::vector<float> y(x.size());
+  for_each_shuffled(small, r, [&](std::size_t si, std::size_t bi) { y[bi] = x[si]; });
+  return y;
+}
+
+std::vector<float> pixel_unshuffle(std::span<const float> big, Nchw small, int r) {
+  std::vector<float> y(big.size());
+  for_each_shuffled(small, r, [&](std::size_t si, std::size_t bi) { y[si] = big[bi]; });
+  return y;
+}
+
 }  // namespace vkjr2::ref

@@ -26,4 +26,8 @@ void channel_affine_backward(std::span<const float> x, Nchw s, std::span<const f
                              std::span<const float> dy, std::vector<float>& dx,
                              std::vector<float>& dscale, std::vector<float>& dbias);
 
+// x: [n, c·r², h, w] → [n, c, h·r, w·r] (PyTorch's PixelShuffle), and back.
+std::vector<float> pixel_shuffle(std::span<const float> x, Nchw small, int r);
+std::vector<float> pixel_unshuffle(std::span<const float> big, Nchw small, int r);
+
 }  // namespace vkjr2::ref

@@ -3,10 +3,12 @@
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cmath>
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "support/gradcheck.hpp"
 #include "support/op_check.hpp"
 #include "support/test_device.hpp"
@@ -171,6 +173,97 @@ TEST(LayoutKernels, ChannelAffineGradientsMatchFiniteDifferences) {
                                 ds.download(), "dscale");
   test::expect_gradient_matches([&](std::span<const float> bi) { return loss(xv, sv, bi); }, bv,
                                 db.download(), "dbias");
+}
+
+TEST(LayoutKernels, PixelShuffleMatchesReference) {
+  // [N, C, H, W, r] of the small side: r = 1 (a copy), one pixel, widths past
+  // the 256-column group, NAFNet's r = 2; then random ones.
+  using Dims = std::array<int, 5>;
+  const std::vector<Dims> edges = {
+      {1, 3, 4, 5, 1}, {1, 1, 1, 1, 2}, {2, 2, 3, 130, 2}, {1, 16, 8, 8, 2}, {1, 2, 5, 3, 3}};
+  test::check_op("pixel_shuffle/unshuffle", {.seed = 705, .cases = 9}, [&](test::OpCase& c) {
+    const Dims k = c.index < int(edges.size())
+                       ? edges[std::size_t(c.index)]
+                       : Dims{c.uniform(1, 3), c.uniform(1, 6), c.uniform(1, 24), c.uniform(1, 24),
+                              c.uniform(1, 4)};
+    const int r = k[4];
+    const Nchw small{k[0], k[1] * r * r, k[2], k[3]};
+    const Nchw big{k[0], k[1], k[2] * r, k[3] * r};
+    c.describe("x " + shape(small).str() + " r " + std::to_string(r));
+    const auto xv = c.floats(small.numel()), bv = c.floats(big.numel());
+    Tensor x = c.tensor(shape(small), xv), y = c.empty(shape(big));
+    Tensor b = c.tensor(shape(big), bv), u = c.empty(shape(small));
+    Stream st(c.device);
+    kernels::pixel_shuffle(st, x, r, y);
+    kernels::pixel_unshuffle(st, b, r, u);
+    st.run();
+    c.expect("shuffle", y, ref::pixel_shuffle(xv, small, r), {0, 0});
+    c.expect("unshuffle", u, ref::pixel_unshuffle(bv, small, r), {0, 0});
+    // Each undoes the other.
+    EXPECT_EQ(ref::pixel_unshuffle(ref::pixel_shuffle(xv, small, r), small, r), xv);
+  });
+}
+
+// PyTorch's order: channel c·r² + i·r + j lands at row offset i, column offset j.
+TEST(LayoutKernels, PixelShuffleKnownValues) {
+  Device& dev = test::device();
+  Tensor x = Tensor::from(dev, {1, 4, 1, 2}, std::vector<float>{0, 1, 2, 3, 4, 5, 6, 7});
+  Tensor y = Tensor::empty(dev, {1, 1, 2, 4});
+  Stream st(dev);
+  kernels::pixel_shuffle(st, x, 2, y);
+  st.run();
+  EXPECT_EQ(y.download(), (std::vector<float>{0, 2, 1, 3, 4, 6, 5, 7}));
+}
+
+// The backward of each is the other: L = Σ w ⊙ shuffle(x) has dL/dx = unshuffle(w).
+TEST(LayoutKernels, PixelShuffleGradientsMatchFiniteDifferences) {
+  Device& dev = test::device();
+  const int r = 2;
+  const Nchw small{2, 8, 3, 4}, big{2, 2, 6, 8};
+  const std::uint32_t seed = 706;
+  SCOPED_TRACE("seed=" + std::to_string(seed));
+  const auto xv = test::random_floats(std::size_t(small.numel()), seed);
+  const auto w = test::random_floats(std::size_t(big.numel()), seed + 1);
+  const auto bv = test::random_floats(std::size_t(big.numel()), seed + 2);
+  const auto ws = test::random_floats(std::size_t(small.numel()), seed + 3);
+  Tensor wt = Tensor::from(dev, shape(big), w), wst = Tensor::from(dev, shape(small), ws);
+  Tensor dx = Tensor::empty(dev, shape(small)), db = Tensor::empty(dev, shape(big));
+  {
+    Stream st(dev);
+    kernels::pixel_unshuffle(st, wt, r, dx);  // backward of the shuffle
+    kernels::pixel_shuffle(st, wst, r, db);   // backward of the unshuffle
+    st.run();
+  }
+  auto loss = [&](bool unshuffle, std::span<const float> v) {
+    const Nchw in = unshuffle ? big : small, out = unshuffle ? small : big;
+    Tensor a = Tensor::from(dev, shape(in), v), y = Tensor::empty(dev, shape(out));
+    Stream st(dev);
+    if (unshuffle) {
+      kernels::pixel_unshuffle(st, a, r, y);
+    } else {
+      kernels::pixel_shuffle(st, a, r, y);
+    }
+    st.run();
+    return test::weighted_sum(y.download(), unshuffle ? ws : w);
+  };
+  test::expect_gradient_matches([&](std::span<const float> v) { return loss(false, v); }, xv,
+                                dx.download(), "pixel_shuffle");
+  test::expect_gradient_matches([&](std::span<const float> v) { return loss(true, v); }, bv,
+                                db.download(), "pixel_unshuffle");
+}
+
+TEST(LayoutKernels, PixelShuffleBadInputsAreClearErrors) {
+  Device& dev = test::device();
+  Stream st(dev);
+  Tensor x = Tensor::empty(dev, {1, 8, 3, 3}), y = Tensor::empty(dev, {1, 2, 6, 6});
+  test::expect_invalid_argument([&] { kernels::pixel_shuffle(st, x, 0, y); }, "factor");
+  Tensor x6 = Tensor::empty(dev, {1, 6, 3, 3});
+  test::expect_invalid_argument([&] { kernels::pixel_shuffle(st, x6, 2, y); }, "multiple of r");
+  Tensor y_bad = Tensor::empty(dev, {1, 2, 6, 5});
+  test::expect_invalid_argument([&] { kernels::pixel_shuffle(st, x, 2, y_bad); }, "y");
+  test::expect_invalid_argument([&] { kernels::pixel_unshuffle(st, y_bad, 2, x); }, "x");
+  Tensor flat = Tensor::empty(dev, {8, 9});
+  test::expect_invalid_argument([&] { kernels::pixel_shuffle(st, flat, 2, y); }, "rank");
 }
 
 TEST(LayoutKernels, BadInputsAreClearErrors) {
