@@ -40,8 +40,8 @@ TEST(BasicKernels, FillCopyAxpyMatchReference) {
     s.run();
     std::vector<float> ry = ys;
     ref::axpy(0.75f, xs, ry);
-    c.expect("fill", f, std::vector<float>(std::size_t(n), -3.5f), {0, 0});
-    c.expect("copy", cp, xs, {0, 0});
+    c.expect("fill", f, std::vector<float>(std::size_t(n), -3.5f), test::kExact);
+    c.expect("copy", cp, xs, test::kExact);
     c.expect("axpy", y, ry, {1e-6, 1e-6});
   });
 }

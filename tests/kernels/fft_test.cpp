@@ -41,14 +41,6 @@ const std::vector<Case> kRealCases = {
     {1, 64, 100}, {1, 125, 128}, {1, 243, 256}, {1, 1000, 360}, {1, 256, 1024}, {1, 14, 49},
 };
 
-double rel_l2(std::span<const float> got, std::span<const double> want) {
-  double num = 0, den = 0;
-  for (std::size_t i = 0; i < got.size(); ++i) {
-    num += (got[i] - want[i]) * (got[i] - want[i]);
-    den += want[i] * want[i];
-  }
-  return std::sqrt(num / std::max(den, 1e-300));
-}
 std::vector<double> to_double(std::span<const float> v) { return {v.begin(), v.end()}; }
 
 // FFTW (single precision) as the peer reference.
@@ -132,12 +124,12 @@ TEST(Fft, ReferenceAgreesWithFftwAndDevice) {
   std::vector<float> fftw(want.size());
   const auto f = fftw_c2c(x, c, false);
   std::copy(f.begin(), f.end(), fftw.begin());
-  EXPECT_LE(rel_l2(fftw, want), 1e-6);
+  EXPECT_LE(test::rel_l2(fftw, want), 1e-6);
   const FftPlan plan(test::device(), {c.b, c.h, c.w}, FftKind::c2c, FftNorm::none);
-  EXPECT_LE(rel_l2(run_plan(plan, x, false), want), kTol);
+  EXPECT_LE(test::rel_l2(run_plan(plan, x, false), want), kTol);
   const auto xr = test::random_floats(std::size_t(c.b * c.h * c.w), 6);
   const FftPlan rplan(test::device(), {c.b, c.h, c.w}, FftKind::r2c);
-  EXPECT_LE(rel_l2(run_plan(rplan, xr, false), ref::fft2d_r2c(xr, c.b, c.h, c.w)), kTol);
+  EXPECT_LE(test::rel_l2(run_plan(rplan, xr, false), ref::fft2d_r2c(xr, c.b, c.h, c.w)), kTol);
 }
 
 TEST(Fft, InverseOfForwardIsIdentityForEveryNorm) {
@@ -153,7 +145,7 @@ TEST(Fft, InverseOfForwardIsIdentityForEveryNorm) {
       const double n = norm == FftNorm::none ? double(c.h * c.w) : 1.0;
       std::vector<double> want(x.size());
       for (std::size_t i = 0; i < x.size(); ++i) want[i] = n * x[i];
-      EXPECT_LE(rel_l2(back, want), kTol);
+      EXPECT_LE(test::rel_l2(back, want), kTol);
     }
   }
 }
@@ -187,7 +179,7 @@ TEST(Fft, C2rIgnoresImaginaryPartsOfRealBins) {
   spectrum[1] += 0.5f;                    // imag of bin (0, 0)
   spectrum[2 * (half - 1) + 1] -= 0.25f;  // imag of bin (0, W/2)
   const auto back = run_plan(plan, spectrum, true);
-  EXPECT_LE(rel_l2(back, to_double(x)), kTol);
+  EXPECT_LE(test::rel_l2(back, to_double(x)), kTol);
 }
 
 TEST(Fft, ParsevalAndLinearity) {
@@ -213,7 +205,7 @@ TEST(Fft, ParsevalAndLinearity) {
     z[i] = a * x[i] + b * y[i];
     want[i] = double(a) * fx[i] + double(b) * fy[i];
   }
-  EXPECT_LE(rel_l2(run_plan(plan, z, false), want), kTol);
+  EXPECT_LE(test::rel_l2(run_plan(plan, z, false), want), kTol);
 }
 
 TEST(Fft, AdjointIsUnnormalizedInverse) {
@@ -279,7 +271,7 @@ TEST(Fft, InPlaceAndOneShot) {
     Stream s(dev);
     kernels::fft2(s, t, t, false, FftNorm::none);
     s.run();
-    EXPECT_LE(rel_l2(t.download(), fftw_c2c(x, c, false)), kTol);
+    EXPECT_LE(test::rel_l2(t.download(), fftw_c2c(x, c, false)), kTol);
   }
 }
 

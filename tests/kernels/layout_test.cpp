@@ -20,8 +20,6 @@ using kernels::Pad2d;
 using kernels::SliceStart;
 using ref::Nchw;
 
-constexpr test::Tol kExact{0, 0};
-
 Shape shape(Nchw s) { return Shape{s.n, s.c, s.h, s.w}; }
 
 // Edge shapes (one element, odd sizes, 16×16, a 67-wide row), then random ones.
@@ -49,9 +47,9 @@ TEST(LayoutKernels, PadMatchesReference) {
     kernels::pad(st, x, p, -2.5f, y);
     kernels::pad_backward(st, dy, p, dx);
     st.run();
-    c.expect("y", y, ref::pad(xv, s, p, -2.5f), kExact);
+    c.expect("y", y, ref::pad(xv, s, p, -2.5f), test::kExact);
     // pad's adjoint is the crop of its interior.
-    c.expect("dx", dx, ref::slice(dyv, o, SliceStart{0, p.top, p.left}, s), kExact);
+    c.expect("dx", dx, ref::slice(dyv, o, SliceStart{0, p.top, p.left}, s), test::kExact);
   });
 }
 
@@ -74,7 +72,7 @@ TEST(LayoutKernels, SliceMatchesReference) {
     kernels::slice(st, x, at, y);
     kernels::slice_backward(st, dy, at, dx);
     st.run();
-    c.expect("y", y, ref::slice(xv, s, at, o), kExact);
+    c.expect("y", y, ref::slice(xv, s, at, o), test::kExact);
     // slice's adjoint: dy placed at `at`, zero elsewhere.
     std::vector<float> want(std::size_t(s.numel()), 0.f);
     std::size_t k = 0;
@@ -84,7 +82,7 @@ TEST(LayoutKernels, SliceMatchesReference) {
           for (std::int64_t j = 0; j < o.w; ++j)
             want[std::size_t(((n * s.c + ch + at.channel) * s.h + i + at.row) * s.w + j + at.col)] =
                 dyv[k++];
-    c.expect("dx", dx, want, kExact);
+    c.expect("dx", dx, want, test::kExact);
   });
 }
 
@@ -111,9 +109,9 @@ TEST(LayoutKernels, ConcatMatchesReference) {
     kernels::concat_channels(st, xs, y);
     kernels::concat_channels_backward(st, y, dxs);
     st.run();
-    c.expect("y", y, ref::concat_channels(values, parts), kExact);
+    c.expect("y", y, ref::concat_channels(values, parts), test::kExact);
     for (std::size_t k = 0; k < parts.size(); ++k) {
-      c.expect("dx" + std::to_string(k), dxs[k], values[k], kExact);
+      c.expect("dx" + std::to_string(k), dxs[k], values[k], test::kExact);
     }
   });
 }
@@ -136,7 +134,7 @@ TEST(LayoutKernels, ChannelAffineMatchesReference) {
     c.expect("y", y, ref::channel_affine(xv, s, sv, bv), {0, 1e-6});
     std::vector<float> rdx, rds, rdb;
     ref::channel_affine_backward(xv, s, sv, dyv, rdx, rds, rdb);
-    c.expect("dx", dx, rdx, kExact);
+    c.expect("dx", dx, rdx, test::kExact);
     const double tol = 1e-5 * double(s.n * s.h * s.w);  // fp32 sums of O(1) terms
     c.expect("dscale", ds, rds, {0, tol});
     c.expect("dbias", db, rdb, {0, tol});
@@ -197,8 +195,8 @@ TEST(LayoutKernels, PixelShuffleMatchesReference) {
     kernels::pixel_shuffle(st, x, r, y);
     kernels::pixel_unshuffle(st, b, r, u);
     st.run();
-    c.expect("shuffle", y, ref::pixel_shuffle(xv, small, r), {0, 0});
-    c.expect("unshuffle", u, ref::pixel_unshuffle(bv, small, r), {0, 0});
+    c.expect("shuffle", y, ref::pixel_shuffle(xv, small, r), test::kExact);
+    c.expect("unshuffle", u, ref::pixel_unshuffle(bv, small, r), test::kExact);
     // Each undoes the other.
     EXPECT_EQ(ref::pixel_unshuffle(ref::pixel_shuffle(xv, small, r), small, r), xv);
   });

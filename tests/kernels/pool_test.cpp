@@ -81,7 +81,7 @@ std::vector<float> distinct_values(std::size_t n, std::uint32_t seed) {
   return v;
 }
 
-constexpr test::Tol kTol{1e-5, 1e-5}, kExact{0, 0};
+constexpr test::Tol kTol{1e-5, 1e-5};
 
 std::vector<std::int32_t> download_i32(const Tensor& t) {
   std::vector<std::int32_t> v(std::size_t(t.numel()));
@@ -118,10 +118,10 @@ TEST(PoolKernels, MaxPoolMatchesReference) {
     const auto r = ref::max_pool2d(xv, k.n * k.c, k.h, k.w, k.p);
     ASSERT_EQ(r.oh, ys[2]);
     ASSERT_EQ(r.ow, ys[3]);
-    c.expect("y", y, r.y, kExact);
+    c.expect("y", y, r.y, test::kExact);
     c.expect_equal("indices", idx, r.indices);
     c.expect("dx", dx, ref::max_pool2d_backward(dyv, r.indices, k.n * k.c, k.h, k.w, k.p), kTol);
-    c.expect("y without indices", y2, r.y, kExact);
+    c.expect("y without indices", y2, r.y, test::kExact);
     std::vector<float> want_padded(std::size_t(ys[0] * ys[1]) * yl.hp * yl.wp, 0.f);
     for (std::int64_t pl = 0; pl < ys[0] * ys[1]; ++pl) {
       for (std::int64_t oy = 0; oy < ys[2]; ++oy) {
@@ -131,7 +131,7 @@ TEST(PoolKernels, MaxPoolMatchesReference) {
         }
       }
     }
-    c.expect("y into padded planes", yp.data, want_padded, kExact);
+    c.expect("y into padded planes", yp.data, want_padded, test::kExact);
   });
 }
 

@@ -15,8 +15,6 @@
 namespace vkjr2 {
 namespace {
 
-constexpr test::Tol kExact{0, 0};
-
 // rows × k: single rows, short rows (< subgroup), rows not filling a group,
 // long rows; then random ones.
 const std::vector<Shape> kRowEdges = {{1, 1},    {1, 7},    {3, 5}, {33, 17},
@@ -48,7 +46,7 @@ TEST(ReduceKernels, RowReductionsMatchReference) {
     std::vector<float> rv;
     std::vector<std::int32_t> ri;
     ref::max_rows(xv, std::size_t(k), rv, ri);
-    c.expect("max_rows value", mv, rv, kExact);
+    c.expect("max_rows value", mv, rv, test::kExact);
     c.expect_equal("max_rows index", mi, ri);
   });
 }
@@ -76,7 +74,7 @@ TEST(ReduceKernels, FullReductionsAndMaxAll) {
     std::vector<float> rv;
     std::vector<std::int32_t> ri;
     ref::max_rows(xv, xv.size(), rv, ri);
-    c.expect("max_all value", mv, rv, kExact);
+    c.expect("max_all value", mv, rv, test::kExact);
     c.expect_equal("max_all index", mi, ri);
   });
 }

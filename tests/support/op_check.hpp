@@ -44,6 +44,11 @@ struct Tol {
   double rtol = 1e-5;
   double atol = 1e-6;
 };
+// Bit-for-bit equal (permutations, copies, max and fill values).
+inline constexpr Tol kExact{0, 0};
+
+// ‖got − want‖₂ / ‖want‖₂.
+double rel_l2(std::span<const float> got, std::span<const double> want);
 
 // rtol relative to each value plus 1e-2·rtol of the largest |want|: for
 // outputs that are sums of interpolation taps, whose rounding follows the
@@ -104,6 +109,9 @@ class OpCase {
   const std::vector<Output>& outputs() const { return outputs_; }
 
  private:
+  // name, with the case's description when there is one.
+  std::string label(const std::string& name) const;
+
   std::mt19937 rng_;
   std::string what_;
   std::vector<Output> outputs_;
