@@ -2,6 +2,7 @@
 #include <vkjr2/kernels/elementwise.hpp>
 
 #include <string>
+#include <vector>
 
 #include "internal/channel_ops.hpp"
 
@@ -65,7 +66,55 @@ void binary_channel(Stream& stream, const char* op_name, BinaryOp op, const Tens
                   groups_1d(div_up(n, kPerGroup), stream.device().info()), {std::uint32_t(op), 1u});
 }
 
+// Checks a simple_gate's x [N, 2C, spatial...] against its half-size
+// partner (y, or dy) and returns the geometry of the half: [N, C, S].
+detail::ChannelGeometry gate_geometry(const char* op, const Tensor& x, const Tensor& half,
+                                      const char* half_name) {
+  require_f32(x, op, "x");
+  require_f32(half, op, half_name);
+  if (x.shape().rank() < 2) {
+    throw InvalidArgument(op, "x has shape " + x.shape().str(),
+                          "pass [N, 2C, ...] (rank 2 to 4, the gate's two halves on axis 1)");
+  }
+  const detail::ChannelGeometry g = detail::channel_geometry(x);
+  if (g.channels % 2 != 0) {
+    throw InvalidArgument(
+        op, "x has " + std::to_string(g.channels) + " channels (shape " + x.shape().str() + ")",
+        "pass an even channel count: the gate multiplies the two halves");
+  }
+  std::vector<std::int64_t> dims(x.shape().dims().begin(), x.shape().dims().end());
+  dims[1] /= 2;
+  require_shape(half, Shape(dims), op, half_name);
+  return {g.batch, g.channels / 2, g.hw};
+}
+
+void gate_dispatch(Stream& stream, bool backward, const Tensor& x, const Tensor& dy,
+                   const detail::ChannelGeometry& g, const Tensor& out) {
+  static const KernelDef k{"simple_gate",
+                           {BindingKind::texel, BindingKind::texel, BindingKind::storage},
+                           sizeof(std::uint32_t)};
+  const std::uint32_t half = g.channels * g.hw;
+  if (half == 0 || g.batch == 0) return;
+  Groups groups = groups_1d(div_up(half, 256), stream.device().info());
+  groups.z = g.batch;
+  stream.dispatch(k, {texel(x), texel(dy), vkjr2::out(out)}, half, groups, {backward ? 1u : 0u});
+}
+
 }  // namespace
+
+void simple_gate(Stream& stream, const Tensor& x, const Tensor& y) {
+  const detail::ChannelGeometry g = gate_geometry("simple_gate", x, y, "y");
+  // The forward never reads binding 1; x stands in for it.
+  gate_dispatch(stream, false, x, x, g, y);
+}
+
+void simple_gate_backward(Stream& stream, const Tensor& x, const Tensor& dy, const Tensor& dx) {
+  const char* op = "simple_gate_backward";
+  const detail::ChannelGeometry g = gate_geometry(op, x, dy, "dy");
+  require_f32(dx, op, "dx");
+  require_same_shape(x, dx, op, "x", "dx");
+  gate_dispatch(stream, true, x, dy, g, dx);
+}
 
 void add(Stream& stream, const Tensor& a, const Tensor& b, const Tensor& out) {
   binary(stream, "add", BinaryOp::add, a, b, out);

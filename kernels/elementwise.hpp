@@ -32,6 +32,12 @@ void add_channel_backward(Stream& stream, const Tensor& dy, const Tensor& dv);
 void mul_channel_backward(Stream& stream, const Tensor& x, const Tensor& v, const Tensor& dy,
                           const Tensor* dx, const Tensor* dv);
 
+// NAFNet's SimpleGate over [N, 2C, spatial...] (rank 2..4, the channel
+// count even): y[n, c, s] = x[n, c, s] · x[n, c + C, s], y: [N, C, spatial...].
+void simple_gate(Stream& stream, const Tensor& x, const Tensor& y);
+// dx[n, c, s] = dy[n, c, s] · x[n, c + C, s], dx[n, c + C, s] = dy[n, c, s] · x[n, c, s].
+void simple_gate_backward(Stream& stream, const Tensor& x, const Tensor& dy, const Tensor& dx);
+
 // y = scale · x + shift (scalars).
 void scale_shift(Stream& stream, const Tensor& x, float scale, float shift, const Tensor& y);
 // dx = scale · dy.

@@ -100,6 +100,32 @@ void prelu_backward(std::span<const float> x, std::span<const float> slope,
   dslope.assign(acc.begin(), acc.end());
 }
 
+std::vector<float> simple_gate(std::span<const float> x, std::uint32_t batch,
+                               std::uint32_t channels, std::uint32_t hw) {
+  const std::size_t half = std::size_t(channels) * hw;
+  std::vector<float> y(batch * half);
+  for (std::size_t n = 0; n < batch; ++n) {
+    for (std::size_t i = 0; i < half; ++i)
+      y[n * half + i] = x[2 * n * half + i] * x[(2 * n + 1) * half + i];
+  }
+  return y;
+}
+
+std::vector<float> simple_gate_backward(std::span<const float> x, std::span<const float> dy,
+                                        std::uint32_t batch, std::uint32_t channels,
+                                        std::uint32_t hw) {
+  const std::size_t half = std::size_t(channels) * hw;
+  std::vector<float> dx(x.size());
+  for (std::size_t n = 0; n < batch; ++n) {
+    for (std::size_t i = 0; i < half; ++i) {
+      const std::size_t a = 2 * n * half + i, b = a + half;
+      dx[a] = dy[n * half + i] * x[b];
+      dx[b] = dy[n * half + i] * x[a];
+    }
+  }
+  return dx;
+}
+
 std::vector<float> channel_sum(std::span<const float> a, std::span<const float> b,
                                std::uint32_t channels, std::uint32_t hw) {
   std::vector<double> acc(channels, 0.0);

@@ -26,6 +26,14 @@ void prelu_backward(std::span<const float> x, std::span<const float> slope,
                     std::span<const float> dy, std::uint32_t channels, std::uint32_t hw,
                     std::vector<float>& dx, std::vector<float>& dslope);
 
+// NAFNet's SimpleGate on x [batch, 2·channels, hw] → [batch, channels, hw],
+// and its backward (dx from dy [batch, channels, hw]).
+std::vector<float> simple_gate(std::span<const float> x, std::uint32_t batch,
+                               std::uint32_t channels, std::uint32_t hw);
+std::vector<float> simple_gate_backward(std::span<const float> x, std::span<const float> dy,
+                                        std::uint32_t batch, std::uint32_t channels,
+                                        std::uint32_t hw);
+
 // out[c] = Σ over [batch, ·, hw] of a (b empty) or a·b.
 std::vector<float> channel_sum(std::span<const float> a, std::span<const float> b,
                                std::uint32_t channels, std::uint32_t hw);

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "support/expect_error.hpp"
 #include "support/gradcheck.hpp"
 #include "support/op_check.hpp"
 #include "support/test_device.hpp"
@@ -91,6 +92,57 @@ TEST(ElementwiseKernels, ChannelBroadcastMatchesReference) {
     c.expect("add_channel dv", dva, ref::channel_sum(dyv, {}, ch, hw), {1e-4, 1e-5});
     c.expect("mul_channel dv", dvm, ref::channel_sum(dyv, xv, ch, hw), {1e-4, 1e-5});
   });
+}
+
+// The gate's x: [N, 2C, spatial...] of rank 2..4, the half past one and
+// several 256-element groups, a batch (the halves are per sample).
+const std::vector<Shape> kGateEdges = {{1, 2},       {3, 4},        {2, 6, 7},
+                                       {1, 2, 1, 1}, {2, 8, 9, 31}, {3, 32, 16, 17}};
+
+TEST(ElementwiseKernels, SimpleGateMatchesReference) {
+  test::check_op(
+      "simple_gate", {.seed = 15, .cases = int(kGateEdges.size()) + 4}, [](test::OpCase& c) {
+        const Shape s = c.edge_or(kGateEdges, [&] {
+          const Shape r = c.nchw(4, 16, 40, 40);
+          return Shape{r[0], 2 * r[1], r[2], r[3]};
+        });
+        c.describe("x " + s.str());
+        const auto batch = std::uint32_t(s[0]), ch = std::uint32_t(s[1] / 2);
+        const auto hw = std::uint32_t(s.numel() / s[0] / s[1]);
+        std::vector<std::int64_t> hd(s.dims().begin(), s.dims().end());
+        hd[1] /= 2;
+        const Shape h(hd);
+        const auto xv = c.floats(s.numel()), dyv = c.floats(h.numel());
+        Tensor x = c.tensor(s, xv), dy = c.tensor(h, dyv);
+        Tensor y = c.empty(h), dx = c.empty(s);
+        Stream st(c.device);
+        kernels::simple_gate(st, x, y);
+        kernels::simple_gate_backward(st, x, dy, dx);
+        st.run();
+        c.expect("y", y, ref::simple_gate(xv, batch, ch, hw), test::kExact);
+        c.expect("dx", dx, ref::simple_gate_backward(xv, dyv, batch, ch, hw), test::kExact);
+      });
+}
+
+TEST(ElementwiseKernels, SimpleGateGradientMatchesFiniteDifferences) {
+  Device& dev = test::device();
+  const Shape s{2, 6, 3, 4}, h{2, 3, 3, 4};
+  const std::uint32_t seed = 16;
+  SCOPED_TRACE("seed " + std::to_string(seed));
+  const auto xv = test::random_floats(std::size_t(s.numel()), seed);
+  const auto w = test::random_floats(std::size_t(h.numel()), seed + 1);
+  Tensor x = Tensor::from(dev, s, xv), wt = Tensor::from(dev, h, w), dx = Tensor::empty(dev, s);
+  Stream st(dev);
+  kernels::simple_gate_backward(st, x, wt, dx);
+  st.run();
+  auto loss = [&](std::span<const float> xs) {
+    Tensor xt = Tensor::from(dev, s, xs), y = Tensor::empty(dev, h);
+    Stream s2(dev);
+    kernels::simple_gate(s2, xt, y);
+    s2.run();
+    return test::weighted_sum(y.download(), w);
+  };
+  test::expect_gradient_matches(loss, xv, dx.download(), "simple_gate dx");
 }
 
 TEST(ElementwiseKernels, UnaryMatchReference) {
@@ -184,6 +236,23 @@ TEST(ElementwiseKernels, GradientsMatchFiniteDifferences) {
         loss_of([](Stream& st, const Tensor& a, const Tensor& o) { kernels::logarithm(st, a, o); }),
         xv, dx.download(), "log", {.step = 1e-3});
   }
+}
+
+TEST(ElementwiseKernels, SimpleGateBadInputsAreClearErrors) {
+  Device& dev = test::device();
+  Stream s(dev);
+  Tensor odd = Tensor::empty(dev, {1, 3, 4, 4}), y = Tensor::empty(dev, {1, 1, 4, 4});
+  test::expect_invalid_argument([&] { kernels::simple_gate(s, odd, y); }, "even");
+  Tensor x = Tensor::empty(dev, {1, 4, 4, 4}), y_bad = Tensor::empty(dev, {1, 4, 4, 4});
+  test::expect_invalid_argument([&] { kernels::simple_gate(s, x, y_bad); }, "y");
+  Tensor vec = Tensor::empty(dev, {4});
+  test::expect_invalid_argument([&] { kernels::simple_gate(s, vec, y); }, "rank 2 to 4");
+  Tensor dy = Tensor::empty(dev, {1, 2, 4, 4});
+  test::expect_invalid_argument(
+      [&] {
+        kernels::simple_gate_backward(s, x, dy, y_bad.view({1, 4, 4, 3}));
+      },
+      "dx");
 }
 
 TEST(ElementwiseKernels, BadInputsAreClearErrors) {
