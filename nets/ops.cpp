@@ -3,12 +3,15 @@
 #include <vkjr2/kernels/elementwise.hpp>
 #include <vkjr2/kernels/loss.hpp>
 #include <vkjr2/kernels/matmul.hpp>
+#include <vkjr2/kernels/norm.hpp>
 #include <vkjr2/kernels/reduce.hpp>
 #include <vkjr2/kernels/softmax.hpp>
 #include <vkjr2/nets/ops.hpp>
 #include <vkjr2/runtime/error.hpp>
 
+#include <string>
 #include <utility>
+#include <vector>
 
 #include "internal/var_state.hpp"
 
@@ -140,6 +143,21 @@ Var mul_channel(Tape& t, const Var& x, const Var& v) {
   });
 }
 
+Var mul_sample_channel(Tape& t, const Var& x, const Var& s) {
+  const Shape& xs = x.shape();
+  const Shape& ss = s.shape();
+  const bool ok = xs.rank() == 4 && (ss == Shape{xs[0], xs[1], 1, 1} || ss == Shape{xs[0], xs[1]});
+  if (!ok) {
+    throw InvalidArgument("nets::mul_sample_channel",
+                          "x " + xs.str() + " and scale " + ss.str() + " do not match",
+                          "pass x [N, C, H, W] and one scale per sample and channel [N, C, 1, 1]");
+  }
+  // Per (n, c) is per channel of x seen as one sample of N·C channels.
+  const Var flat_x = reshape(t, x, Shape{1, xs[0] * xs[1], xs[2], xs[3]});
+  const Var flat_s = reshape(t, s, Shape{xs[0] * xs[1]});
+  return reshape(t, mul_channel(t, flat_x, flat_s), xs);
+}
+
 Var sum_channels(Tape& t, const Var& x) {
   // [C] for a vector, else the channels of [N, C, ...] (kernels::sum_channels checks).
   const Shape& s = x.shape();
@@ -164,6 +182,34 @@ Var channel_affine(Tape& t, const Var& x, const Var& scale, const Var& bias) {
     tape.commit(gx);
     tape.commit(gs);
     tape.commit(gb);
+  });
+}
+
+// ---- normalization and gating -------------------------------------------------------
+
+Var layer_norm_channels(Tape& t, const Var& x, const Var& gamma, const Var& beta, float eps) {
+  Tensor y = empty_like(x.value());
+  k::layer_norm_channels(t.stream(), x.value(), gamma.value(), beta.value(), eps, y);
+  return finish(t, y, {&x, &gamma, &beta}, [x, gamma, beta, eps](Tape& tape, const Tensor& dy) {
+    GradSlot gx = tape.slot(x), gg = tape.slot(gamma), gb = tape.slot(beta);
+    k::layer_norm_channels_backward(tape.stream(), x.value(), gamma.value(), dy, eps, gx.ptr(),
+                                    gg.ptr(), gb.ptr());
+    tape.commit(gx);
+    tape.commit(gg);
+    tape.commit(gb);
+  });
+}
+
+Var simple_gate(Tape& t, const Var& x) {
+  const Shape& s = x.shape();
+  std::vector<std::int64_t> dims(s.dims().begin(), s.dims().end());
+  if (s.rank() >= 2) dims[1] /= 2;
+  Tensor y = empty(x, Shape(dims));
+  k::simple_gate(t.stream(), x.value(), y);
+  return finish(t, y, {&x}, [x](Tape& tape, const Tensor& dy) {
+    GradSlot gx = tape.slot(x);
+    k::simple_gate_backward(tape.stream(), x.value(), dy, gx.target);
+    tape.commit(gx);
   });
 }
 
@@ -492,6 +538,38 @@ Var slice(Tape& t, const Var& x, const kernels::SliceStart& start, const Shape& 
   return finish(t, y, {&x}, [x, start](Tape& tape, const Tensor& dy) {
     GradSlot gx = tape.slot(x);
     k::slice_backward(tape.stream(), dy, start, gx.target);
+    tape.commit(gx);
+  });
+}
+
+Var pixel_shuffle(Tape& t, const Var& x, int r) {
+  const Shape& s = x.shape();
+  if (s.rank() != 4 || r < 1 || s[1] % (std::int64_t(r) * r) != 0) {
+    throw InvalidArgument("nets::pixel_shuffle",
+                          "x " + s.str() + " with factor " + std::to_string(r),
+                          "pass NCHW x whose channels are a multiple of r², r >= 1");
+  }
+  Tensor y = empty(x, Shape{s[0], s[1] / (r * r), s[2] * r, s[3] * r});
+  k::pixel_shuffle(t.stream(), x.value(), r, y);
+  return finish(t, y, {&x}, [x, r](Tape& tape, const Tensor& dy) {
+    GradSlot gx = tape.slot(x);
+    k::pixel_unshuffle(tape.stream(), dy, r, gx.target);
+    tape.commit(gx);
+  });
+}
+
+Var pixel_unshuffle(Tape& t, const Var& x, int r) {
+  const Shape& s = x.shape();
+  if (s.rank() != 4 || r < 1 || s[2] % r != 0 || s[3] % r != 0) {
+    throw InvalidArgument("nets::pixel_unshuffle",
+                          "x " + s.str() + " with factor " + std::to_string(r),
+                          "pass NCHW x whose height and width are multiples of r, r >= 1");
+  }
+  Tensor y = empty(x, Shape{s[0], s[1] * r * r, s[2] / r, s[3] / r});
+  k::pixel_unshuffle(t.stream(), x.value(), r, y);
+  return finish(t, y, {&x}, [x, r](Tape& tape, const Tensor& dy) {
+    GradSlot gx = tape.slot(x);
+    k::pixel_shuffle(tape.stream(), dy, r, gx.target);
     tape.commit(gx);
   });
 }

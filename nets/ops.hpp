@@ -31,10 +31,21 @@ Var log(Tape& t, const Var& x);
 // ---- per-channel broadcasts over [N, C, spatial...] ---------------------------
 Var add_channel(Tape& t, const Var& x, const Var& v);  // x + v[c]
 Var mul_channel(Tape& t, const Var& x, const Var& v);  // x · v[c]
+// x [N, C, H, W] · s[n, c] with s [N, C, 1, 1] (or [N, C]): a per-sample
+// channel scale (NAFNet's channel attention).
+Var mul_sample_channel(Tape& t, const Var& x, const Var& s);
 // [C]: Σ over n and the spatial axes.
 Var sum_channels(Tape& t, const Var& x);
 // x · scale[c] + bias[c] (frozen batch norm / face-api's scale layer).
 Var channel_affine(Tape& t, const Var& x, const Var& scale, const Var& bias);
+
+// ---- normalization and gating -----------------------------------------------------
+// NAFNet's LayerNorm2d over the channels of each pixel (kernels/norm.hpp):
+// gamma · x̂ + beta, gamma and beta [C].
+Var layer_norm_channels(Tape& t, const Var& x, const Var& gamma, const Var& beta,
+                        float eps = 1e-6f);
+// [N, 2C, ...] → [N, C, ...]: the first half of the channels times the second.
+Var simple_gate(Tape& t, const Var& x);
 
 // ---- activations ----------------------------------------------------------------
 Var relu(Tape& t, const Var& x);
@@ -101,6 +112,9 @@ Var avg_pool2d(Tape& t, const Var& x, const kernels::Pool2d& p, bool count_inclu
 Var global_avg_pool(Tape& t, const Var& x);  // [N, C, 1, 1]
 Var resize(Tape& t, const Var& x, kernels::ResizeMode mode, std::int64_t out_h, std::int64_t out_w);
 Var pad(Tape& t, const Var& x, const kernels::Pad2d& p, float value = 0.f);
+// [N, C·r², H, W] → [N, C, H·r, W·r] (PyTorch's PixelShuffle) and back.
+Var pixel_shuffle(Tape& t, const Var& x, int r);
+Var pixel_unshuffle(Tape& t, const Var& x, int r);
 Var concat_channels(Tape& t, std::span<const Var> xs);
 Var slice(Tape& t, const Var& x, const kernels::SliceStart& start, const Shape& shape);
 // Same memory under another shape; the gradient is reshaped back.

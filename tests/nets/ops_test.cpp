@@ -83,6 +83,24 @@ TEST(NetsOps, ElementwiseAndChannel) {
   check_gradients(
       "channel_affine", {{s}, {Shape{3}}, {Shape{3}}},
       [](Tape& t, auto& v) { return channel_affine(t, v[0], v[1], v[2]); }, 10);
+  check_gradients(
+      "mul_sample_channel", {{s}, {Shape{2, 3, 1, 1}}},
+      [](Tape& t, auto& v) { return mul_sample_channel(t, v[0], v[1]); }, 18);
+}
+
+TEST(NetsOps, NormGateAndShuffle) {
+  const Shape s{2, 6, 5, 4};
+  check_gradients("layer_norm_channels", {{s}, {Shape{6}, 0.5f, 1.5f}, {Shape{6}}},
+                  [](Tape& t, auto& v) { return layer_norm_channels(t, v[0], v[1], v[2]); }, 19,
+                  {.step = 1e-2});
+  check_gradients(
+      "simple_gate", {{s}}, [](Tape& t, auto& v) { return simple_gate(t, v[0]); }, 20);
+  check_gradients(
+      "pixel_shuffle", {{Shape{2, 8, 3, 5}}},
+      [](Tape& t, auto& v) { return pixel_shuffle(t, v[0], 2); }, 21);
+  check_gradients(
+      "pixel_unshuffle", {{Shape{2, 2, 6, 4}}},
+      [](Tape& t, auto& v) { return pixel_unshuffle(t, v[0], 2); }, 22);
 }
 
 TEST(NetsOps, Activations) {

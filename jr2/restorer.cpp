@@ -1,0 +1,334 @@
+#include <vkjr2/jr2/restorer.hpp>
+#include <vkjr2/nets/checkpoint.hpp>
+#include <vkjr2/nets/ops.hpp>
+#include <vkjr2/nets/safetensors.hpp>
+#include <vkjr2/runtime/error.hpp>
+
+#include <charconv>
+#include <utility>
+
+namespace vkjr2::jr2 {
+namespace {
+
+using nets::Conv2d;
+using nets::Tape;
+using nets::Var;
+
+constexpr const char* kNetwork = "vkjr2.restorer";
+constexpr float kNormEps = 1e-6f;  // NAFNet's LayerNorm2d
+
+// Distinct, reproducible seeds for the layers of one network.
+class Seeds {
+ public:
+  explicit Seeds(std::uint32_t seed) : state_(seed) {}
+  std::uint32_t next() {
+    std::uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
+    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
+    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
+    return std::uint32_t((z ^ (z >> 31)) >> 32);
+  }
+
+ private:
+  std::uint64_t state_;
+};
+
+kernels::Conv2dParams conv_params(int pad, int stride = 1, int groups = 1) {
+  kernels::Conv2dParams p;
+  p.stride_y = p.stride_x = stride;
+  p.pad = {pad, pad, pad, pad};
+  p.groups = groups;
+  return p;
+}
+
+std::string join(const std::vector<int>& v) {
+  std::string s;
+  for (std::size_t i = 0; i < v.size(); ++i) s += (i ? "," : "") + std::to_string(v[i]);
+  return s;
+}
+
+int parse_int(const std::string& text, const std::string& what) {
+  int v = 0;
+  const char* end = text.data() + text.size();
+  const auto [ptr, ec] = std::from_chars(text.data(), end, v);
+  if (ec != std::errc() || ptr != end || text.empty()) {
+    throw InvalidArgument("restorer", what + " is \"" + text + "\", not a whole number",
+                          "write a whole number");
+  }
+  return v;
+}
+
+// Multiply-adds of a convolution over an output of `pixels` pixels.
+double conv_macs(int cin, int cout, int k, int groups, double pixels) {
+  return double(cout) * double(cin / groups) * k * k * pixels;
+}
+
+// One NAFBlock of width c over `pixels` pixels: its convolutions' multiply-adds
+// ×2, plus one FLOP per element for each norm (≈ 8 per value), gate,
+// attention scale and β/γ residual.
+double block_flops(int c, double pixels) {
+  const double macs = conv_macs(c, 2 * c, 1, 1, pixels) +
+                      conv_macs(2 * c, 2 * c, 3, 2 * c, pixels) + conv_macs(c, c, 1, 1, 1) +
+                      conv_macs(c, c, 1, 1, pixels) + conv_macs(c, 2 * c, 1, 1, pixels) +
+                      conv_macs(c, c, 1, 1, pixels);
+  const double elementwise = pixels * c * (2 * 8 + 2 + 1 + 1 + 2 * 2);
+  return 2 * macs + elementwise;
+}
+
+std::int64_t block_params(int c) {
+  const std::int64_t cc = c;
+  return 4 * cc                    // two norms
+         + (2 * cc * cc + 2 * cc)  // conv1
+         + (2 * cc * 9 + 2 * cc)   // conv2 (depthwise)
+         + (cc * cc + cc) * 2      // sca, conv3
+         + (2 * cc * cc + 2 * cc)  // conv4
+         + (cc * cc + cc)          // conv5
+         + 2 * cc;                 // β, γ
+}
+
+}  // namespace
+
+std::vector<int> parse_block_list(const std::string& text, const std::string& what) {
+  std::vector<int> out;
+  std::size_t start = 0;
+  while (start <= text.size()) {
+    const std::size_t comma = text.find(',', start);
+    const std::string item =
+        text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    const int v = parse_int(item, what + " (\"" + text + "\")");
+    out.push_back(v);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return out;
+}
+
+void RestorerConfig::validate() const {
+  const char* op = "restorer";
+  if (frames < 1 || frames > 64) {
+    throw InvalidArgument(op, "frames = " + std::to_string(frames), "use 1..64 input frames");
+  }
+  if (width < 2 || width % 2 != 0 || width > 256) {
+    throw InvalidArgument(op, "width = " + std::to_string(width),
+                          "use an even width in 2..256 (16 is the default)");
+  }
+  if (enc_blocks.empty() || enc_blocks.size() > 5) {
+    throw InvalidArgument(op, std::to_string(enc_blocks.size()) + " encoder levels",
+                          "use 1..5 levels (--enc-blocks 1,1,1)");
+  }
+  if (dec_blocks.size() != enc_blocks.size()) {
+    throw InvalidArgument(op,
+                          std::to_string(enc_blocks.size()) + " encoder levels but " +
+                              std::to_string(dec_blocks.size()) + " decoder levels",
+                          "give as many decoder as encoder levels");
+  }
+  for (const auto* list : {&enc_blocks, &dec_blocks}) {
+    for (int b : *list) {
+      if (b < 0 || b > 32) {
+        throw InvalidArgument(op, "a level with " + std::to_string(b) + " blocks",
+                              "use 0..32 blocks per level");
+      }
+    }
+  }
+  if (middle_blocks < 0 || middle_blocks > 32) {
+    throw InvalidArgument(op, "middle_blocks = " + std::to_string(middle_blocks),
+                          "use 0..32 middle blocks");
+  }
+}
+
+std::int64_t RestorerConfig::parameter_count() const {
+  validate();
+  const int levels = this->levels();
+  std::int64_t n = (std::int64_t(width) * 3 * frames * 9 + width) + (3LL * width * 9 + 3);
+  for (int i = 0; i < levels; ++i) {
+    const std::int64_t c = std::int64_t(width) << i;
+    n += enc_blocks[std::size_t(i)] * block_params(int(c));
+    n += 2 * c * c * 4 + 2 * c;  // down
+  }
+  n += middle_blocks * block_params(width << levels);
+  for (int i = 0; i < levels; ++i) {
+    const std::int64_t c = std::int64_t(width) << (levels - i);
+    n += 2 * c * c;  // up (no bias)
+    n += dec_blocks[std::size_t(i)] * block_params(int(c / 2));
+  }
+  return n;
+}
+
+double RestorerConfig::flops(std::int64_t height, std::int64_t w) const {
+  validate();
+  const int levels = this->levels();
+  const std::int64_t m = std::int64_t(1) << levels;
+  const double hp = double((height + m - 1) / m * m), wp = double((w + m - 1) / m * m);
+  double f = 2 * (conv_macs(3 * frames, width, 3, 1, hp * wp) + conv_macs(width, 3, 3, 1, hp * wp));
+  f += 3 * hp * wp;  // + the reference frame
+  for (int i = 0; i < levels; ++i) {
+    const int c = width << i;
+    const double px = hp * wp / double(1 << (2 * i));
+    f += enc_blocks[std::size_t(i)] * block_flops(c, px);
+    f += 2 * conv_macs(c, 2 * c, 2, 1, px / 4);
+  }
+  const double deep = hp * wp / double(std::int64_t(1) << (2 * levels));
+  f += middle_blocks * block_flops(width << levels, deep);
+  for (int i = 0; i < levels; ++i) {
+    const int c = width << (levels - i);
+    const double px = hp * wp / double(std::int64_t(1) << (2 * (levels - i)));
+    f += 2 * conv_macs(c, 2 * c, 1, 1, px);
+    f += double(c / 2) * px * 4;  // the skip's add
+    f += dec_blocks[std::size_t(i)] * block_flops(c / 2, px * 4);
+  }
+  return f;
+}
+
+std::map<std::string, std::string> RestorerConfig::metadata() const {
+  return {{"network", kNetwork},
+          {"frames", std::to_string(frames)},
+          {"width", std::to_string(width)},
+          {"enc_blocks", join(enc_blocks)},
+          {"middle_blocks", std::to_string(middle_blocks)},
+          {"dec_blocks", join(dec_blocks)}};
+}
+
+RestorerConfig RestorerConfig::from_metadata(const std::map<std::string, std::string>& meta,
+                                             const std::string& source) {
+  auto get = [&](const char* key) -> const std::string& {
+    const auto it = meta.find(key);
+    if (it == meta.end()) {
+      throw InvalidArgument("restorer",
+                            source + " has no metadata \"" + key + "\": not a restorer file",
+                            "pass a file written by vkjr2 restore-train");
+    }
+    return it->second;
+  };
+  if (get("network") != kNetwork) {
+    throw InvalidArgument("restorer", source + " holds a \"" + get("network") + "\" network",
+                          "pass a restorer file (network \"" + std::string(kNetwork) + "\")");
+  }
+  RestorerConfig c;
+  c.frames = parse_int(get("frames"), source + " metadata frames");
+  c.width = parse_int(get("width"), source + " metadata width");
+  c.enc_blocks = parse_block_list(get("enc_blocks"), source + " metadata enc_blocks");
+  c.middle_blocks = parse_int(get("middle_blocks"), source + " metadata middle_blocks");
+  c.dec_blocks = parse_block_list(get("dec_blocks"), source + " metadata dec_blocks");
+  c.validate();
+  return c;
+}
+
+NafBlock::NafBlock(const Device& device, int c, std::uint32_t seed) {
+  Seeds seeds(seed);
+  auto ones = std::vector<float>(std::size_t(c), 1.f), zeros = std::vector<float>(std::size_t(c));
+  norm1_weight = register_parameter("norm1.weight", Tensor::from(device, Shape{c}, ones));
+  norm1_bias = register_parameter("norm1.bias", Tensor::from(device, Shape{c}, zeros));
+  norm2_weight = register_parameter("norm2.weight", Tensor::from(device, Shape{c}, ones));
+  norm2_bias = register_parameter("norm2.bias", Tensor::from(device, Shape{c}, zeros));
+  beta = register_parameter("beta", Tensor::from(device, Shape{c}, zeros));
+  gamma = register_parameter("gamma", Tensor::from(device, Shape{c}, zeros));
+  auto conv = [&](const char* name, int cin, int cout, int k, int groups) {
+    return &register_module(
+        name, std::make_unique<Conv2d>(device, cin, cout, k, k, conv_params(k / 2, 1, groups), true,
+                                       seeds.next()));
+  };
+  conv1_ = conv("conv1", c, 2 * c, 1, 1);
+  conv2_ = conv("conv2", 2 * c, 2 * c, 3, 2 * c);
+  sca_ = conv("sca", c, c, 1, 1);
+  conv3_ = conv("conv3", c, c, 1, 1);
+  conv4_ = conv("conv4", c, 2 * c, 1, 1);
+  conv5_ = conv("conv5", c, c, 1, 1);
+}
+
+Var NafBlock::forward(Tape& t, const Var& x) const {
+  Var h = nets::layer_norm_channels(t, x, norm1_weight, norm1_bias, kNormEps);
+  h = nets::simple_gate(t, conv2_->forward(t, conv1_->forward(t, h)));
+  h = nets::mul_sample_channel(t, h, sca_->forward(t, nets::global_avg_pool(t, h)));
+  const Var y = nets::add(t, x, nets::mul_channel(t, conv3_->forward(t, h), beta));
+  h = nets::layer_norm_channels(t, y, norm2_weight, norm2_bias, kNormEps);
+  h = conv5_->forward(t, nets::simple_gate(t, conv4_->forward(t, h)));
+  return nets::add(t, y, nets::mul_channel(t, h, gamma));
+}
+
+Restorer::Restorer(const Device& device, const RestorerConfig& config, std::uint32_t seed)
+    : config_(config) {
+  config_.validate();
+  Seeds seeds(seed);
+  const int w = config_.width, levels = config_.levels();
+  auto conv = [&](const std::string& name, int cin, int cout, int k, int stride, int pad,
+                  bool bias) {
+    return &register_module(
+        name, std::make_unique<Conv2d>(device, cin, cout, k, k, conv_params(pad, stride), bias,
+                                       seeds.next()));
+  };
+  auto blocks = [&](const std::string& prefix, int count, int c) {
+    std::vector<NafBlock*> out;
+    for (int j = 0; j < count; ++j) {
+      out.push_back(&register_module(prefix + std::to_string(j),
+                                     std::make_unique<NafBlock>(device, c, seeds.next())));
+    }
+    return out;
+  };
+  intro_ = conv("intro", 3 * config_.frames, w, 3, 1, 1, true);
+  for (int i = 0; i < levels; ++i) {
+    const int c = w << i;
+    encoders_.push_back(
+        blocks("encoders." + std::to_string(i) + ".", config_.enc_blocks[std::size_t(i)], c));
+    downs_.push_back(conv("downs." + std::to_string(i), c, 2 * c, 2, 2, 0, true));
+  }
+  middle_ = blocks("middle.", config_.middle_blocks, w << levels);
+  for (int i = 0; i < levels; ++i) {
+    const int c = w << (levels - i);
+    ups_.push_back(conv("ups." + std::to_string(i), c, 2 * c, 1, 1, 0, false));
+    decoders_.push_back(
+        blocks("decoders." + std::to_string(i) + ".", config_.dec_blocks[std::size_t(i)], c / 2));
+  }
+  ending_ = conv("ending", w, 3, 3, 1, 1, true);
+}
+
+std::unique_ptr<Restorer> Restorer::load(const Device& device, const std::filesystem::path& path) {
+  const nets::SafetensorsFile file = nets::read_safetensors(path);
+  const RestorerConfig config = RestorerConfig::from_metadata(file.metadata, path.string());
+  auto net = std::make_unique<Restorer>(device, config, 0);
+  nets::load_checkpoint(path, *net, nullptr);
+  return net;
+}
+
+void Restorer::save(const std::filesystem::path& path,
+                    const std::map<std::string, std::string>& metadata) const {
+  std::map<std::string, std::string> meta = metadata;
+  for (auto& [k, v] : config_.metadata()) meta[k] = v;
+  nets::save_checkpoint(path, *this, nullptr, meta);
+}
+
+Var Restorer::forward(Tape& t, const Var& frames) const {
+  const Shape& s = frames.shape();
+  const std::int64_t channels = 3LL * config_.frames;
+  if (s.rank() != 4 || s[1] != channels || s[2] < 1 || s[3] < 1) {
+    throw InvalidArgument("Restorer::forward", "input has shape " + s.str(),
+                          "pass [N, " + std::to_string(channels) + ", H, W]: " +
+                              std::to_string(config_.frames) + " RGB frames on the channels");
+  }
+  const int levels = config_.levels();
+  const std::int64_t m = std::int64_t(1) << levels;
+  const std::int64_t hp = (s[2] + m - 1) / m * m, wp = (s[3] + m - 1) / m * m;
+  Var input = frames;
+  if (hp != s[2] || wp != s[3]) {
+    input = nets::pad(t, frames, {0, std::int32_t(hp - s[2]), 0, std::int32_t(wp - s[3])});
+  }
+  Var x = intro_->forward(t, input);
+  std::vector<Var> skips;
+  for (int i = 0; i < levels; ++i) {
+    for (const NafBlock* b : encoders_[std::size_t(i)]) x = b->forward(t, x);
+    skips.push_back(x);
+    x = downs_[std::size_t(i)]->forward(t, x);
+  }
+  for (const NafBlock* b : middle_) x = b->forward(t, x);
+  for (int i = 0; i < levels; ++i) {
+    x = nets::pixel_shuffle(t, ups_[std::size_t(i)]->forward(t, x), 2);
+    x = nets::add(t, x, skips[std::size_t(levels - 1 - i)]);
+    for (const NafBlock* b : decoders_[std::size_t(i)]) x = b->forward(t, x);
+  }
+  x = ending_->forward(t, x);
+  const Var reference =
+      nets::slice(t, input, {3LL * config_.reference_frame(), 0, 0}, Shape{s[0], 3, hp, wp});
+  Var out = nets::add(t, x, reference);
+  if (hp != s[2] || wp != s[3]) out = nets::slice(t, out, {0, 0, 0}, Shape{s[0], 3, s[2], s[3]});
+  return out;
+}
+
+}  // namespace vkjr2::jr2
