@@ -7,14 +7,15 @@
 
 namespace vkjr2::cli {
 
-void add_devices(CLI::App& app);       // devices.cpp
-void add_faces(CLI::App& app);         // faces.cpp: detect, embed, verify, identify
-void add_simulate(CLI::App& app);      // simulate.cpp
-void add_sim_train(CLI::App& app);     // sim_train.cpp
-void add_wave(CLI::App& app);          // wave.cpp
-void add_bench(CLI::App& app);         // bench.cpp: runs bench/'s programs
-void add_sim_validate(CLI::App& app);  // sim_validate.cpp
-void add_dataset(CLI::App& app);       // dataset.cpp: dataset make, dataset merge
+void add_devices(CLI::App& app);        // devices.cpp
+void add_faces(CLI::App& app);          // faces.cpp: detect, embed, verify, identify
+void add_simulate(CLI::App& app);       // simulate.cpp
+void add_sim_train(CLI::App& app);      // sim_train.cpp
+void add_restore_train(CLI::App& app);  // restore_train.cpp
+void add_wave(CLI::App& app);           // wave.cpp
+void add_bench(CLI::App& app);          // bench.cpp: runs bench/'s programs
+void add_sim_validate(CLI::App& app);   // sim_validate.cpp
+void add_dataset(CLI::App& app);        // dataset.cpp: dataset make, dataset merge
 void add_demo(CLI::App& app);
 void add_eval(CLI::App& app);  // eval.cpp: the JR² evaluation of a benchmark          // demo.cpp:
                                // the turbulence-vs-recognition study

@@ -85,6 +85,16 @@ std::int64_t block_params(int c) {
          + 2 * cc;                 // β, γ
 }
 
+// The 2×2 stride-2 conv as pixel_unshuffle(2) and a 1×1 conv: OIHW
+// [2c, c, 2, 2] is, in memory, the [2c, 4c, 1, 1] weight over the unshuffled
+// channels c·4 + 2i + j, so both run on the pointwise kernels (forward and
+// backward) instead of the general strided ones.
+Var down(Tape& t, const Conv2d& conv, const Var& x) {
+  const Shape& w = conv.weight.shape();
+  const Var weight = nets::reshape(t, conv.weight, Shape{w[0], w[1] * 4, 1, 1});
+  return nets::conv2d(t, nets::pixel_unshuffle(t, x, 2), weight, conv.bias, conv_params(0));
+}
+
 }  // namespace
 
 std::vector<int> parse_block_list(const std::string& text, const std::string& what) {
@@ -315,7 +325,7 @@ Var Restorer::forward(Tape& t, const Var& frames) const {
   for (int i = 0; i < levels; ++i) {
     for (const NafBlock* b : encoders_[std::size_t(i)]) x = b->forward(t, x);
     skips.push_back(x);
-    x = downs_[std::size_t(i)]->forward(t, x);
+    x = down(t, *downs_[std::size_t(i)], x);
   }
   for (const NafBlock* b : middle_) x = b->forward(t, x);
   for (int i = 0; i < levels; ++i) {

@@ -42,6 +42,16 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
   const char* op = "conv2d_backward_data";
   const Dims d = backward_dims(op, dx, "dx", weight, "weight", dy, p);
 
+  // 1×1, stride 1, no padding, groups 1: dX = Wᵀ·dY per pixel, the pointwise
+  // kernel over dY with the transposed weight (no padding pass).
+  if (p.algo == Conv2dAlgo::auto_select &&
+      why_not(Conv2dAlgo::pointwise, stream.device(), d, p).empty()) {
+    const Dims td{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w};
+    run_forward(stream, Conv2dAlgo::pointwise, dy, weight, nullptr, dx, push_of(td, Conv2dParams{}),
+                true);
+    return;
+  }
+
   // Stride 1, groups 1: dX = conv(dY, W'), W'[ci][co] = W[co][ci] flipped in
   // both axes, padding (K−1)·d − pad (may be negative: the pad pass crops).
   Conv2dParams tp;

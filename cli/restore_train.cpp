@@ -1,0 +1,365 @@
+// vkjr2 restore-train: train the restorer on clips the simulator makes on
+// the fly (jr2/restore_train.hpp), with checkpoints, bit-exact resume, a JSON
+// log of the losses and held-out PSNR/SSIM, and a config file.
+#include <vkjr2/jr2/restore_train.hpp>
+#include <vkjr2/runtime/device.hpp>
+#include <vkjr2/runtime/error.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+#include <yaml-cpp/yaml.h>
+
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "checks.hpp"
+#include "cleanup.hpp"
+#include "commands.hpp"
+#include "log.hpp"
+#include "media.hpp"
+#include "progress.hpp"
+
+namespace vkjr2::cli {
+namespace {
+
+namespace fs = std::filesystem;
+
+constexpr const char* kDefaultImages = "/usr/share/doc/opencv-doc/examples/data";
+// Frames of a video used for training: every kVideoStride-th, --video-frames of them.
+constexpr std::size_t kVideoStride = 10;
+
+// --config FILE: a JSON or YAML map of this command's long option names
+// (without the dashes) to values; lists for multi-value options. Options
+// given on the command line win.
+class YamlConfig : public CLI::Config {
+ public:
+  std::string to_config(const CLI::App*, bool, bool, std::string) const override { return {}; }
+  std::vector<CLI::ConfigItem> from_config(std::istream& in) const override {
+    std::stringstream text;
+    text << in.rdbuf();
+    YAML::Node root;
+    try {
+      root = YAML::Load(text.str());
+    } catch (const YAML::Exception& e) {
+      throw CLI::ConversionError("--config: not JSON or YAML: " + std::string(e.what()));
+    }
+    std::vector<CLI::ConfigItem> out;
+    if (root.IsNull()) return out;
+    if (!root.IsMap()) throw CLI::ConversionError("--config: the file must hold a map of options");
+    for (const auto& kv : root) {
+      CLI::ConfigItem item;
+      item.name = kv.first.as<std::string>();
+      if (kv.second.IsSequence()) {
+        for (const auto& v : kv.second) item.inputs.push_back(v.as<std::string>());
+      } else if (kv.second.IsScalar()) {
+        item.inputs.push_back(kv.second.as<std::string>());
+      } else {
+        throw CLI::ConversionError("--config: " + item.name + " must be a value or a list");
+      }
+      out.push_back(std::move(item));
+    }
+    return out;
+  }
+};
+
+struct TrainArgs {
+  std::string output, checkpoint, log_path, device, enc = "1,1,1", dec = "1,1,1";
+  std::vector<std::string> images;
+  std::vector<double> d_over_r0{1, 8}, scale{0.4, 1.0};
+  int val_every = 5, video_frames = 12, checkpoint_every = 100, eval_every = 250;
+  jr2::RestoreTrainOptions o;
+  bool resume = false, json_out = false, quiet = false, force = false;
+};
+
+// The clean images: every image (and video_frames frames of every video)
+// directly inside each folder; every val_every-th image by name is held out.
+void load_images(const TrainArgs& a, int crop, std::vector<jr2::TrainImage>& train,
+                 std::vector<jr2::TrainImage>& val) {
+  std::vector<std::string> dirs = a.images;
+  if (dirs.empty()) dirs.push_back(kDefaultImages);
+  std::size_t small = 0, image_index = 0;
+  for (const std::string& d : dirs) {
+    if (dirs.size() == 1 && d == kDefaultImages && !fs::is_directory(d)) {
+      throw UsageError("restore-train", std::string(kDefaultImages) + " does not exist",
+                       "install Debian's opencv-doc (scripts/setup) or pass --images DIR");
+    }
+    check_input_folder(d, "--images");
+    for (const fs::path& p :
+         list_files(d, [](const fs::path& f) { return is_image_path(f) || is_video_path(f); })) {
+      // A file that cannot be read is reported and left out (Debian's
+      // opencv-doc ships a truncated tree.avi).
+      try {
+        if (is_video_path(p)) {
+          std::vector<jr2::TrainImage> frames;
+          read_video(p, kVideoStride, std::size_t(a.video_frames),
+                     [&](std::size_t i, const Image& im) {
+                       if (im.shape[0] >= crop && im.shape[1] >= crop) {
+                         frames.push_back({p.filename().string() + "#" + std::to_string(i), im});
+                       }
+                     });
+          for (auto& f : frames) train.push_back(std::move(f));
+          continue;
+        }
+        Image im = read_image(p);
+        if (im.shape[0] < crop || im.shape[1] < crop) {
+          ++small;
+          continue;
+        }
+        const bool held_out = a.val_every > 0 && image_index % std::size_t(a.val_every) == 0;
+        ++image_index;
+        (held_out ? val : train).push_back({p.filename().string(), std::move(im)});
+      } catch (const Error& e) {
+        log_warn(describe_error(e) + " (left out)");
+      }
+    }
+  }
+  if (small > 0) {
+    log_info(std::to_string(small) + " images smaller than the " + std::to_string(crop) +
+             "² crop were left out");
+  }
+  if (train.empty() || val.empty()) {
+    throw UsageError("restore-train",
+                     std::to_string(train.size()) + " training and " + std::to_string(val.size()) +
+                         " held-out images of at least " + std::to_string(crop) + "² pixels",
+                     "pass --images folders with more images (or lower --crop, --val-every)");
+  }
+}
+
+void run_restore_train(TrainArgs& a) {
+  check_extension(a.output, {".safetensors"}, "OUT");
+  check_output_file(a.output, a.force, "OUT");
+  if (a.checkpoint.empty()) a.checkpoint = a.output + ".ckpt";
+  if (a.resume) {
+    check_input_file(a.checkpoint, "--checkpoint");
+  } else {
+    check_output_file(a.checkpoint, a.force, "--checkpoint");
+  }
+  jr2::RestoreTrainOptions& o = a.o;
+  o.net.enc_blocks = jr2::parse_block_list(a.enc, "--enc-blocks");
+  o.net.dec_blocks = jr2::parse_block_list(a.dec, "--dec-blocks");
+  o.d_over_r0_lo = a.d_over_r0[0];
+  o.d_over_r0_hi = a.d_over_r0[1];
+  o.scale_lo = a.scale[0];
+  o.scale_hi = a.scale[1];
+  try {
+    o.validate();
+  } catch (const InvalidArgument& e) {
+    throw UsageError("restore-train", e.problem(), e.fix());
+  }
+  watch_output_folder(fs::path(a.output).parent_path());
+  const auto t0 = std::chrono::steady_clock::now();
+  std::vector<jr2::TrainImage> train, val;
+  load_images(a, o.crop, train, val);
+  const std::size_t n_train = train.size(), n_val = val.size();
+  Device device = open_device(a.device);
+  jr2::RestoreTrainer trainer(device, o, std::move(train), std::move(val),
+                              sim::load_shipped_blur_models(device));
+  if (a.resume) trainer.load_checkpoint(a.checkpoint);
+  log_info("restore-train: " + std::to_string(n_train) + " training images, " +
+           std::to_string(n_val) + " held out; " + std::to_string(o.net.parameter_count()) +
+           " parameters, " + readable(o.net.flops(160, 160) / 1e9) + " GFLOP per 160² frame");
+
+  std::ofstream log_file;
+  if (!a.log_path.empty()) {
+    log_file.open(a.log_path, a.resume ? std::ios::app : std::ios::trunc);
+    if (!log_file) {
+      throw Error("restore-train", "cannot write --log " + a.log_path, "check the folder");
+    }
+  }
+  auto write_log = [&](const nlohmann::json& j) {
+    if (log_file) log_file << j.dump() << "\n" << std::flush;
+  };
+  {
+    Progress fill("restore-train: simulating the clip pool", std::size_t(o.pool), a.quiet);
+    trainer.prepare([&](int done, int) { fill.update(std::size_t(done)); });
+  }
+  Progress bar("restore-train", std::size_t(o.steps), a.quiet);
+  bar.update(std::size_t(trainer.step()));
+  jr2::RestoreEvalReport last_eval;
+  double loss_avg = 0;
+  int loss_n = 0;
+  auto eval = [&] {
+    last_eval = trainer.evaluate();
+    write_log({{"step", last_eval.step},
+               {"psnr_restored", last_eval.psnr_restored},
+               {"psnr_degraded", last_eval.psnr_degraded},
+               {"ssim_restored", last_eval.ssim_restored},
+               {"ssim_degraded", last_eval.ssim_degraded},
+               {"seconds", last_eval.seconds}});
+    log_info("restore-train: step " + std::to_string(last_eval.step) + ": held-out PSNR " +
+             readable(last_eval.psnr_restored) + " dB (degraded " +
+             readable(last_eval.psnr_degraded) + "), SSIM " + readable(last_eval.ssim_restored) +
+             " (" + readable(last_eval.ssim_degraded) + "); mean train loss " +
+             readable(loss_n ? loss_avg / loss_n : 0.0));
+    loss_avg = 0;
+    loss_n = 0;
+  };
+  while (trainer.step() < o.steps) {
+    const jr2::RestoreStepReport r = trainer.train_step();
+    loss_avg += r.loss;
+    ++loss_n;
+    write_log({{"step", r.step},
+               {"loss", r.loss},
+               {"lr", r.lr},
+               {"grad_norm", r.grad_norm},
+               {"sim_seconds", r.sim_seconds},
+               {"train_seconds", r.train_seconds}});
+    bar.update(std::size_t(r.step));
+    if (r.step % a.checkpoint_every == 0 || r.step == o.steps) {
+      trainer.save_checkpoint(a.checkpoint);
+    }
+    if (r.step % a.eval_every == 0 || r.step == o.steps) {
+      bar.done();
+      eval();
+    }
+  }
+  bar.done();
+  if (device.profiling_enabled()) {
+    std::fprintf(stderr, "restore-train: device time per kernel (VKJR2_PROFILE=1):\n%s",
+                 device.profile_report().c_str());
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  auto meta = trainer.options_metadata();
+  meta["train.held_out_psnr"] = readable(last_eval.psnr_restored);
+  meta["train.held_out_psnr_degraded"] = readable(last_eval.psnr_degraded);
+  trainer.restorer().save(a.output, meta);
+  if (a.json_out) {
+    const nlohmann::json j = {{"output", a.output},
+                              {"checkpoint", a.checkpoint},
+                              {"steps", trainer.step()},
+                              {"train_images", n_train},
+                              {"held_out_images", n_val},
+                              {"parameters", o.net.parameter_count()},
+                              {"psnr_restored", last_eval.psnr_restored},
+                              {"psnr_degraded", last_eval.psnr_degraded},
+                              {"ssim_restored", last_eval.ssim_restored},
+                              {"ssim_degraded", last_eval.ssim_degraded},
+                              {"seconds", seconds}};
+    std::printf("%s\n", j.dump(2).c_str());
+  } else {
+    std::printf(
+        "restore-train: wrote %s after %d steps in %.0f s\n  held-out PSNR %.2f dB (degraded "
+        "%.2f), SSIM %.4f (%.4f)\n",
+        a.output.c_str(), trainer.step(), seconds, last_eval.psnr_restored, last_eval.psnr_degraded,
+        last_eval.ssim_restored, last_eval.ssim_degraded);
+  }
+}
+
+}  // namespace
+
+void add_restore_train(CLI::App& app) {
+  auto a = std::make_shared<TrainArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "restore-train", "Train the restorer on clips the turbulence simulator makes on the fly");
+  cmd->footer(
+      "Clip k is made from (--seed, k): a clean image scaled, cropped to --crop² pixels and "
+      "maybe mirrored,\n"
+      "degraded into --frames frames at a D/r0 drawn log-uniformly in --d-over-r0. A pool of "
+      "--pool clips\n"
+      "is kept, --refresh of them replaced every step. Loss: Charbonnier to the clean crop; "
+      "AdamW, warm-up +\n"
+      "cosine decay, gradient-norm clipping. A checkpoint every --checkpoint-every steps; "
+      "--resume goes on\n"
+      "from it bit-exactly. Every --val-every-th image is held out and scored (PSNR/SSIM).\n"
+      "Examples:\n"
+      "  vkjr2 restore-train artifacts/restorer_default.safetensors --force   # the shipped "
+      "model\n"
+      "  vkjr2 restore-train mine.safetensors --images photos/ --steps 5000 --log train.jsonl\n"
+      "  vkjr2 restore-train mine.safetensors --resume       # after an interruption\n"
+      "  vkjr2 restore-train mine.safetensors --config train.yaml   # options as a JSON/YAML "
+      "map");
+  cmd->config_formatter(std::make_shared<YamlConfig>());
+  cmd->set_config("--config", "", "JSON or YAML map of these options (long names, no dashes)");
+  cmd->add_option("OUT", a->output, "Output model (.safetensors)")->required();
+  cmd->add_option("--images", a->images,
+                  "Folders of clean images and videos (default: opencv-doc's sample data)");
+  cmd->add_option("--val-every", a->val_every, "Hold out every N-th image (by name)")
+      ->default_val(a->val_every)
+      ->check(integer_range(2, 1000));
+  cmd->add_option("--video-frames", a->video_frames, "Frames taken from each video")
+      ->default_val(a->video_frames)
+      ->check(integer_range(1, 10000));
+  auto& o = a->o;
+  cmd->add_option("--frames", o.net.frames, "Input frames T")
+      ->default_val(o.net.frames)
+      ->check(integer_range(1, 64));
+  cmd->add_option("--width", o.net.width, "Channels at full resolution")
+      ->default_val(o.net.width)
+      ->check(integer_range(2, 256));
+  cmd->add_option("--enc-blocks", a->enc, "NAFBlocks per encoder level")->default_val(a->enc);
+  cmd->add_option("--middle-blocks", o.net.middle_blocks, "NAFBlocks at the bottom")
+      ->default_val(o.net.middle_blocks)
+      ->check(integer_range(0, 32));
+  cmd->add_option("--dec-blocks", a->dec, "NAFBlocks per decoder level, deepest first")
+      ->default_val(a->dec);
+  cmd->add_option("--crop", o.crop, "Training clip side in pixels")
+      ->default_val(o.crop)
+      ->check(integer_range(16, 512));
+  cmd->add_option("--batch", o.batch, "Clips per step")
+      ->default_val(o.batch)
+      ->check(integer_range(1, 256));
+  cmd->add_option("--steps", o.steps, "Training steps")
+      ->default_val(o.steps)
+      ->check(integer_range(1, 10000000));
+  cmd->add_option("--lr", o.lr, "Peak learning rate")
+      ->default_val(o.lr)
+      ->check(finite_range(1e-8, 1));
+  cmd->add_option("--min-lr", o.min_lr, "Learning rate at the end of the cosine")
+      ->default_val(o.min_lr)
+      ->check(finite_range(0, 1));
+  cmd->add_option("--weight-decay", o.weight_decay, "AdamW decoupled weight decay")
+      ->default_val(o.weight_decay)
+      ->check(finite_range(0, 0.999));
+  cmd->add_option("--warmup", o.warmup_steps, "Linear warm-up steps")
+      ->default_val(o.warmup_steps)
+      ->check(integer_range(0, 10000000));
+  cmd->add_option("--clip-grad", o.clip_grad_norm, "Clip the global gradient norm (0: off)")
+      ->default_val(o.clip_grad_norm)
+      ->check(finite_range(0, 1e6));
+  cmd->add_option("--d-over-r0", a->d_over_r0, "D/r0 range LO HI of the training clips")
+      ->expected(2)
+      ->delimiter(',')
+      ->default_str("1,8")
+      ->check(finite_range(0.05, 20));
+  cmd->add_option("--scale", a->scale,
+                  "Crop window range LO HI as a share of the image's shorter side")
+      ->expected(2)
+      ->delimiter(',')
+      ->default_str("0.4,1")
+      ->check(finite_range(0.01, 1));
+  cmd->add_option("--pool", o.pool, "Simulated clips kept")
+      ->default_val(o.pool)
+      ->check(integer_range(1, 100000));
+  cmd->add_option("--refresh", o.refresh, "New clips simulated per step")
+      ->default_val(o.refresh)
+      ->check(integer_range(0, 100000));
+  cmd->add_option("--val-clips", o.val_clips, "Held-out clips scored")
+      ->default_val(o.val_clips)
+      ->check(integer_range(1, 4096));
+  cmd->add_option("--checkpoint", a->checkpoint, "Checkpoint file (default: OUT.ckpt)");
+  cmd->add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints")
+      ->default_val(a->checkpoint_every)
+      ->check(integer_range(1, 10000000));
+  cmd->add_option("--eval-every", a->eval_every, "Steps between held-out scores")
+      ->default_val(a->eval_every)
+      ->check(integer_range(1, 10000000));
+  cmd->add_option("--log", a->log_path, "JSON-lines log of every step and score");
+  cmd->add_flag("--resume", a->resume, "Go on from --checkpoint (same settings)");
+  add_seed_option(cmd, o.seed, "Seed of the network and the data", o.seed);
+  cmd->add_option("--device", a->device,
+                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
+  cmd->add_flag("--quiet", a->quiet, "No progress bar");
+  cmd->add_flag("--force", a->force, "Replace existing output and checkpoint files");
+  cmd->callback([a] { run_restore_train(*a); });
+}
+
+}  // namespace vkjr2::cli
