@@ -39,6 +39,7 @@ int run(int argc, char** argv) {
   vkjr2::cli::add_demo(app);
   vkjr2::cli::add_devices(app);
   vkjr2::cli::add_eval(app);
+  vkjr2::cli::add_restore(app);
   vkjr2::cli::add_restore_train(app);
   vkjr2::cli::add_faces(app);
   vkjr2::cli::add_simulate(app);

@@ -3,7 +3,9 @@
 #include <vkjr2/nets/ops.hpp>
 #include <vkjr2/nets/safetensors.hpp>
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
 
+#include <algorithm>
 #include <charconv>
 #include <utility>
 
@@ -303,6 +305,27 @@ void Restorer::save(const std::filesystem::path& path,
   std::map<std::string, std::string> meta = metadata;
   for (auto& [k, v] : config_.metadata()) meta[k] = v;
   nets::save_checkpoint(path, *this, nullptr, meta);
+}
+
+std::filesystem::path default_restorer_path() {
+  return sim::default_blur_model_path().parent_path() / "restorer_default.safetensors";
+}
+
+std::vector<std::size_t> restore_window(std::size_t count, std::size_t index, int frames) {
+  if (count == 0 || index >= count || frames < 1) {
+    throw InvalidArgument("restore_window",
+                          "frame " + std::to_string(index) + " of a clip of " +
+                              std::to_string(count) + " for a restorer of " +
+                              std::to_string(frames) + " frames",
+                          "pass an index inside a non-empty clip");
+  }
+  std::vector<std::size_t> w(std::size_t(frames), 0);
+  const auto r = std::int64_t(frames / 2);
+  for (std::int64_t j = 0; j < frames; ++j) {
+    const std::int64_t i = std::int64_t(index) - r + j;
+    w[std::size_t(j)] = std::size_t(std::clamp<std::int64_t>(i, 0, std::int64_t(count) - 1));
+  }
+  return w;
 }
 
 Var Restorer::forward(Tape& t, const Var& frames) const {

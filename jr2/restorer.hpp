@@ -96,4 +96,15 @@ class Restorer : public nets::Module {
   std::vector<nets::Conv2d*> downs_, ups_;
 };
 
+// The shipped restorer, artifacts/restorer_default.safetensors (made by
+// `vkjr2 restore-train`), in the folder the simulator's shipped models are
+// found in ($VKJR2_ARTIFACT_DIR, else installed, else the source tree).
+std::filesystem::path default_restorer_path();
+
+// The frames a restorer of T frames reads to restore frame `index` of a clip
+// of `count`: the T around it with `index` at the reference position T / 2,
+// indices clamped into the clip (the first and last frames repeat near the
+// ends and when the clip is shorter than T).
+std::vector<std::size_t> restore_window(std::size_t count, std::size_t index, int frames);
+
 }  // namespace vkjr2::jr2
