@@ -36,7 +36,7 @@ struct Benchmark {
   const char* what;
 };
 
-constexpr std::array<Benchmark, 5> kBenchmarks{{
+constexpr std::array<Benchmark, 6> kBenchmarks{{
     {"sim", "sim_bench",
      "fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)"},
     {"kernels", "kernels_bench", "each kernel against OpenCV, FFTW or plain C++"},
@@ -44,6 +44,8 @@ constexpr std::array<Benchmark, 5> kBenchmarks{{
     {"nets", "nets_bench", "the face networks against face-api on TF.js WASM and OpenCV DNN"},
     {"pipeline", "pipeline_bench",
      "probe videos/s through the JR² recognition pipeline against face-api on TF.js WASM"},
+    {"restore", "restore_bench",
+     "the restorer's inference frames/s and training steps/s against PyTorch on the CPU"},
 }};
 
 const Benchmark* find_benchmark(std::string_view name) {

@@ -221,6 +221,7 @@ void run_restore_train(TrainArgs& a) {
     }
   }
   bar.done();
+  if (last_eval.step != trainer.step()) eval();  // resumed at the end: score what is saved
   if (device.profiling_enabled()) {
     std::fprintf(stderr, "restore-train: device time per kernel (VKJR2_PROFILE=1):\n%s",
                  device.profile_report().c_str());
