@@ -4,6 +4,8 @@
 #include <vkjr2/jr2/evaluation.hpp>
 #include <vkjr2/jr2/faces.hpp>
 #include <vkjr2/jr2/protocol.hpp>
+#include <vkjr2/jr2/restorer.hpp>
+#include <vkjr2/nets/autograd.hpp>
 #include <vkjr2/nets/face_common.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
@@ -52,7 +54,39 @@ struct EvalArgs {
 
 constexpr std::array<const char*, 6> kOutputs = {"results.json", "report.md", "scores.csv",
                                                  "roc.png",      "cmc.png",   "fnir_fpir.png"};
-const std::vector<std::string> kMethods = {"degraded"};
+// Frames the classical peer averages (the restorer's default T).
+constexpr int kClassicalFrames = 8;
+
+// A method: how a probe's frames are seen before recognition.
+struct Method {
+  std::string name;                         // as reported ("restored:restorer_default")
+  std::unique_ptr<jr2::Restorer> restorer;  // restored:MODEL
+  bool classical = false;
+};
+
+Method parse_method(const Device& device, const std::string& text) {
+  Method m;
+  m.name = text;
+  if (text == "degraded") return m;
+  if (text == "classical") {
+    m.classical = true;
+    return m;
+  }
+  if (text.rfind("restored", 0) == 0) {
+    const std::string path = text.size() > 9 && text[8] == ':' ? text.substr(9) : std::string();
+    const fs::path model = path.empty() ? jr2::default_restorer_path() : fs::path(path);
+    if (!text.empty() && text != "restored" && path.empty()) {
+      throw UsageError("--method", "'" + text + "'",
+                       "write restored or restored:MODEL.safetensors");
+    }
+    check_input_file(model, "--method " + text);
+    m.restorer = jr2::Restorer::load(device, model);
+    m.name = "restored:" + model.stem().string();
+    return m;
+  }
+  throw UsageError("--method", "unknown method '" + text + "'",
+                   "use degraded, classical, restored (the shipped restorer) or restored:MODEL");
+}
 
 std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> out;
@@ -167,13 +201,7 @@ void run_eval(const EvalArgs& a) {
   check_input_file(manifest_path, "MANIFEST");
   const fs::path out(a.out);
   check_output_folder(out, "--out");
-  const std::vector<std::string> methods = split_list(a.methods);
-  for (const std::string& m : methods) {
-    if (std::find(kMethods.begin(), kMethods.end(), m) == kMethods.end()) {
-      throw UsageError("--method", "unknown method '" + m + "'",
-                       "use degraded (the probes as they are)");
-    }
-  }
+  const std::vector<std::string> method_texts = split_list(a.methods);
   if (a.split != "val" && a.split != "test") {
     throw UsageError("--split", "'" + a.split + "'", "use test (the reported split) or val");
   }
@@ -221,6 +249,12 @@ void run_eval(const EvalArgs& a) {
   create_output_folder(out, "--out");
 
   const Device device = open_device(a.device);
+  std::vector<Method> method_list;
+  std::vector<std::string> methods;
+  for (const std::string& text : method_texts) {
+    method_list.push_back(parse_method(device, text));
+    methods.push_back(method_list.back().name);
+  }
   const jr2::FaceAnalyzer analyzer(device);
   const jr2::ProbePipeline pipeline(analyzer, protocol);
   Stream stream(device);
@@ -245,13 +279,38 @@ void run_eval(const EvalArgs& a) {
     const std::vector<Image> frames = read_frames(dir / p.file);
     const Tensor clean = image_to_device(device, read_image(dir / p.clean_file));
     const std::uint64_t sampler_seed = a.seed * 0x9e3779b97f4a7c15ULL + pi;
-    for (const std::string& method : methods) {
-      // degraded: the frames as the camera gave them.
-      // The sampled frames are uploaded once: the pipeline asks for them,
-      // the image quality reads them again.
+    std::vector<Tensor> uploaded(frames.size());
+    const auto raw = [&](std::size_t f) {
+      if (!uploaded[f].defined()) uploaded[f] = image_to_device(device, frames[f], 3, 255.f);
+      return uploaded[f];
+    };
+    for (const Method& method_def : method_list) {
+      const std::string& method = method_def.name;
+      // degraded: the frames as the camera gave them; classical and
+      // restored: each sampled frame made from the T around it. The frames
+      // are made once: the pipeline asks for them, the image quality reads
+      // them again.
       std::vector<Tensor> sampled;
       const auto frame = [&](int f) {
-        sampled.push_back(image_to_device(device, frames[std::size_t(f)]));
+        if (!method_def.restorer && !method_def.classical) {
+          sampled.push_back(image_to_device(device, frames[std::size_t(f)]));
+          return sampled.back();
+        }
+        const int t = method_def.restorer ? method_def.restorer->config().frames : kClassicalFrames;
+        std::vector<Tensor> window;
+        for (std::size_t i : jr2::restore_window(frames.size(), std::size_t(f), t)) {
+          window.push_back(raw(i));
+        }
+        Tensor unit;  // 0..1
+        if (method_def.restorer) {
+          nets::Tape tape(stream, false);
+          unit = method_def.restorer->forward(tape, nets::Var(jr2::stack_frames(stream, window)))
+                     .value();
+        } else {
+          unit = jr2::classical_restore(stream, window);
+        }
+        // The pipeline and the quality take 0..255 pixels, clamped as a saved frame is.
+        sampled.push_back(jr2::to_pixels(stream, unit));
         return sampled.back();
       };
       const jr2::ProbeOutcome po = pipeline.run(stream, int(frames.size()), frame, sampler_seed);
@@ -395,7 +454,9 @@ void add_eval(CLI::App& app) {
       ->required();
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_option("--method", a->methods,
-                  "Comma-separated methods: degraded (the probes as they are)")
+                  "Comma-separated methods: degraded (the probes as they are), classical "
+                  "(temporal mean + unsharp mask), restored (the shipped restorer) or "
+                  "restored:MODEL.safetensors")
       ->default_val("degraded");
   cmd->add_option("--split", a->split, "Which split to evaluate: test or val")->default_val("test");
   cmd->add_option("--frames", a->frames, "Frame sampler: segments:SxR, uniform:K or all")

@@ -1,4 +1,9 @@
 #include <vkjr2/jr2/restorer.hpp>
+#include <vkjr2/kernels/activation.hpp>
+#include <vkjr2/kernels/basic.hpp>
+#include <vkjr2/kernels/conv2d.hpp>
+#include <vkjr2/kernels/elementwise.hpp>
+#include <vkjr2/kernels/layout.hpp>
 #include <vkjr2/nets/checkpoint.hpp>
 #include <vkjr2/nets/ops.hpp>
 #include <vkjr2/nets/safetensors.hpp>
@@ -7,6 +12,7 @@
 
 #include <algorithm>
 #include <charconv>
+#include <cmath>
 #include <utility>
 
 namespace vkjr2::jr2 {
@@ -326,6 +332,104 @@ std::vector<std::size_t> restore_window(std::size_t count, std::size_t index, in
     w[std::size_t(j)] = std::size_t(std::clamp<std::int64_t>(i, 0, std::int64_t(count) - 1));
   }
   return w;
+}
+
+Tensor stack_frames(Stream& stream, std::span<const Tensor> frames) {
+  if (frames.empty()) {
+    throw InvalidArgument("stack_frames", "no frames", "pass at least one [1, 3, H, W] frame");
+  }
+  const Shape& s = frames.front().shape();
+  for (const Tensor& f : frames) {
+    if (f.shape().rank() != 4 || !(f.shape() == s) || s[0] != 1 || s[1] != 3) {
+      throw InvalidArgument("stack_frames", "a frame of shape " + f.shape().str(),
+                            "pass frames of one shape [1, 3, H, W]");
+    }
+  }
+  const Tensor y =
+      Tensor::empty(stream.device(), Shape{1, 3 * std::int64_t(frames.size()), s[2], s[3]});
+  kernels::concat_channels(stream, frames, y);
+  return y;
+}
+
+Tensor to_pixels(Stream& stream, const Tensor& unit) {
+  const Device& dev = stream.device();
+  const Tensor a = Tensor::empty(dev, unit.shape()), b = Tensor::empty(dev, unit.shape());
+  kernels::relu(stream, unit, a);                     // max(x, 0)
+  kernels::scale_shift(stream, a, -1.f, 1.f, b);      // 1 − max(x, 0)
+  kernels::relu(stream, b, a);                        // max(1 − max(x, 0), 0)
+  kernels::scale_shift(stream, a, -255.f, 255.f, b);  // 255·min(max(x, 0), 1)
+  return b;
+}
+
+Tensor classical_restore(Stream& stream, std::span<const Tensor> frames,
+                         const ClassicalOptions& o) {
+  if (!(o.sigma_px > 0 && o.sigma_px <= 20) || !(o.amount >= 0 && o.amount <= 10)) {
+    throw InvalidArgument(
+        "classical_restore",
+        "sigma " + std::to_string(o.sigma_px) + " px, amount " + std::to_string(o.amount),
+        "use 0 < sigma <= 20 px and 0 <= amount <= 10");
+  }
+  const Tensor x = stack_frames(stream, frames);
+  const Device& dev = stream.device();
+  const auto t = std::int64_t(frames.size());
+  const std::int64_t h = x.shape()[2], w = x.shape()[3];
+  // The mean as a 1×1 conv: out channel c averages channels 3f + c.
+  std::vector<float> mean_w(std::size_t(3 * 3 * t), 0.f);
+  for (std::int64_t c = 0; c < 3; ++c) {
+    for (std::int64_t f = 0; f < t; ++f)
+      mean_w[std::size_t(c * 3 * t + 3 * f + c)] = 1.f / float(t);
+  }
+  const Tensor mean = Tensor::empty(dev, Shape{1, 3, h, w});
+  kernels::conv2d(stream, x, Tensor::from(dev, Shape{3, 3 * t, 1, 1}, mean_w), nullptr, mean,
+                  conv_params(0));
+  // Gaussian blur (depthwise, zero padding), then divided by the weight
+  // inside the image (a product with the host-computed reciprocal).
+  const int r = int(std::ceil(3 * o.sigma_px));
+  const int k = 2 * r + 1;
+  std::vector<double> g(static_cast<std::size_t>(k));
+  double gs = 0;
+  for (int i = 0; i < k; ++i) {
+    g[std::size_t(i)] = std::exp(-0.5 * std::pow((i - r) / o.sigma_px, 2));
+    gs += g[std::size_t(i)];
+  }
+  for (double& v : g) v /= gs;
+  std::vector<float> gw(std::size_t(3 * k * k));
+  for (int c = 0; c < 3; ++c) {
+    for (int i = 0; i < k; ++i) {
+      for (int j = 0; j < k; ++j) {
+        gw[std::size_t((c * k + i) * k + j)] = float(g[std::size_t(i)] * g[std::size_t(j)]);
+      }
+    }
+  }
+  auto inside = [&](std::int64_t n, std::int64_t p) {  // the 1-D weight inside [0, n)
+    double a = 0;
+    for (int i = 0; i < k; ++i) {
+      const std::int64_t q = p + i - r;
+      if (q >= 0 && q < n) a += g[std::size_t(i)];
+    }
+    return a;
+  };
+  std::vector<double> wy(static_cast<std::size_t>(h)), wx(static_cast<std::size_t>(w));
+  for (std::int64_t i = 0; i < h; ++i) wy[std::size_t(i)] = inside(h, i);
+  for (std::int64_t j = 0; j < w; ++j) wx[std::size_t(j)] = inside(w, j);
+  std::vector<float> norm(std::size_t(3 * h * w));
+  for (std::int64_t c = 0; c < 3; ++c) {
+    for (std::int64_t i = 0; i < h; ++i) {
+      for (std::int64_t j = 0; j < w; ++j) {
+        norm[std::size_t((c * h + i) * w + j)] =
+            float(1.0 / (wy[std::size_t(i)] * wx[std::size_t(j)]));
+      }
+    }
+  }
+  const Tensor blurred = Tensor::empty(dev, Shape{1, 3, h, w});
+  kernels::conv2d(stream, mean, Tensor::from(dev, Shape{3, 1, k, k}, gw), nullptr, blurred,
+                  conv_params(r, 1, 3));
+  const Tensor normalized = Tensor::empty(dev, Shape{1, 3, h, w});
+  kernels::mul(stream, blurred, Tensor::from(dev, Shape{1, 3, h, w}, norm), normalized);
+  const Tensor out = Tensor::empty(dev, Shape{1, 3, h, w});
+  kernels::scale_shift(stream, mean, float(1 + o.amount), 0.f, out);
+  kernels::axpy(stream, float(-o.amount), normalized, out);
+  return out;
 }
 
 Var Restorer::forward(Tape& t, const Var& frames) const {

@@ -27,6 +27,7 @@
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -106,5 +107,25 @@ std::filesystem::path default_restorer_path();
 // indices clamped into the clip (the first and last frames repeat near the
 // ends and when the clip is shorter than T).
 std::vector<std::size_t> restore_window(std::size_t count, std::size_t index, int frames);
+
+// Frames [1, 3, H, W] stacked on the channels: [1, 3·count, H, W] (the
+// restorer's input).
+Tensor stack_frames(Stream& stream, std::span<const Tensor> frames);
+
+// 0..1 planes as 0..255 pixels, clamped as a saved 8-bit frame is:
+// 255·min(max(x, 0), 1) (the recognition pipeline's input scale).
+Tensor to_pixels(Stream& stream, const Tensor& unit);
+
+// The classical peer of the restorer (docs/restoration.md): the temporal
+// mean of the frames — the tilt jitter averages out, as in a long exposure —
+// sharpened by unsharp masking, m + amount·(m − G_σ ⊛ m), the Gaussian of
+// radius ⌈3σ⌉ normalized inside the image at the borders. frames: [1, 3, H, W]
+// each; returns [1, 3, H, W].
+struct ClassicalOptions {
+  double sigma_px = 1.5;
+  double amount = 1.0;
+};
+Tensor classical_restore(Stream& stream, std::span<const Tensor> frames,
+                         const ClassicalOptions& options = {});
 
 }  // namespace vkjr2::jr2

@@ -1,5 +1,6 @@
 #include <vkjr2/kernels/check.hpp>
 #include <vkjr2/kernels/conv2d.hpp>
+#include <vkjr2/kernels/layout.hpp>
 
 #include <string>
 
@@ -50,6 +51,30 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
     run_forward(stream, Conv2dAlgo::pointwise, dy, weight, nullptr, dx, push_of(td, Conv2dParams{}),
                 true);
     return;
+  }
+
+  // Depthwise (one output per input channel), stride 1: dX = the depthwise
+  // conv of dY with the weight rotated by 180°, padding (K−1)·d − pad.
+  if (p.algo == Conv2dAlgo::auto_select && p.groups == d.cin && d.cout == d.cin &&
+      p.stride_y == 1 && p.stride_x == 1) {
+    const Dims td{d.n, d.cout, d.hout, d.wout, d.cin, d.kh, d.kw, d.h, d.w};
+    Conv2dParams dp;
+    dp.dilation_y = p.dilation_y;
+    dp.dilation_x = p.dilation_x;
+    dp.groups = int(d.cout);
+    dp.pad.top = int((d.kh - 1) * p.dilation_y - p.pad.top);
+    dp.pad.left = int((d.kw - 1) * p.dilation_x - p.pad.left);
+    dp.pad.bottom = int((d.kh - 1) * p.dilation_y - p.pad.bottom);
+    dp.pad.right = int((d.kw - 1) * p.dilation_x - p.pad.right);
+    const bool non_negative =
+        dp.pad.top >= 0 && dp.pad.left >= 0 && dp.pad.bottom >= 0 && dp.pad.right >= 0;
+    if (non_negative && why_not(Conv2dAlgo::depthwise, stream.device(), td, dp).empty()) {
+      // The rotated weight is a temporary: kept alive by the stream until it has run.
+      const Tensor rotated = Tensor::empty(stream.device(), weight.shape());
+      flip_spatial(stream, weight, rotated);
+      run_forward(stream, Conv2dAlgo::depthwise, dy, rotated, nullptr, dx, push_of(td, dp), false);
+      return;
+    }
   }
 
   // Stride 1, groups 1: dX = conv(dY, W'), W'[ci][co] = W[co][ci] flipped in

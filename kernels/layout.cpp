@@ -215,6 +215,30 @@ void slice_backward(Stream& stream, const Tensor& dy, const SliceStart& s, const
   region_copy(stream, dy, dx, 0, s.channel, dy.shape()[1], -s.row, -s.col, 0.f);
 }
 
+void flip_spatial(Stream& stream, const Tensor& x, const Tensor& y) {
+  static const KernelDef k{
+      "flip_spatial", {BindingKind::texel, BindingKind::storage}, 2 * sizeof(std::uint32_t)};
+  const char* op = "flip_spatial";
+  require_nchw(x, op, "x");
+  require_nchw(y, op, "y");
+  require_same_shape(x, y, op, "x", "y");
+  const Shape& s = x.shape();
+  const auto planes = std::uint64_t(s[0] * s[1]), plane = std::uint64_t(s[2] * s[3]);
+  if (planes == 0 || plane == 0) return;
+  if (planes > stream.device().info().max_workgroup_count[2]) {
+    throw InvalidArgument(op, "x has " + std::to_string(planes) + " planes",
+                          "flip at most " +
+                              std::to_string(stream.device().info().max_workgroup_count[2]) +
+                              " planes (N·C) per call");
+  }
+  Groups g = groups_1d(div_up(plane, 256), stream.device().info());
+  g.z = std::uint32_t(planes);
+  struct {
+    std::uint32_t h, w;
+  } const push{std::uint32_t(s[2]), std::uint32_t(s[3])};
+  stream.dispatch(k, {texel(x), out(y)}, push, g);
+}
+
 void channel_affine(Stream& stream, const Tensor& x, const Tensor& scale, const Tensor& bias,
                     const Tensor& y) {
   const char* op = "channel_affine";

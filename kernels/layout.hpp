@@ -46,6 +46,11 @@ void channel_affine(Stream& stream, const Tensor& x, const Tensor& scale, const 
 void channel_affine_backward(Stream& stream, const Tensor& x, const Tensor& scale, const Tensor& dy,
                              const Tensor* dx, const Tensor* dscale, const Tensor* dbias);
 
+// y[n, c, i, j] = x[n, c, H − 1 − i, W − 1 − j] (rotation by 180°; a
+// convolution's weight flipped for its backward-data). x, y: [N, C, H, W],
+// distinct; the op is its own inverse and backward.
+void flip_spatial(Stream& stream, const Tensor& x, const Tensor& y);
+
 // Pixel shuffle with factor r ≥ 1 (PyTorch's PixelShuffle):
 //   y[n, c, h·r + i, w·r + j] = x[n, c·r² + i·r + j, h, w],
 // x: [N, C·r², H, W] → y: [N, C, H·r, W·r]. pixel_unshuffle is its inverse

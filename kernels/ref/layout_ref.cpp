@@ -89,6 +89,19 @@ void for_each_shuffled(Nchw small, int r, F f) {
 
 }  // namespace
 
+std::vector<float> flip_spatial(std::span<const float> x, Nchw s) {
+  std::vector<float> y(x.size());
+  for (std::int64_t p = 0; p < s.n * s.c; ++p) {
+    for (std::int64_t i = 0; i < s.h; ++i) {
+      for (std::int64_t j = 0; j < s.w; ++j) {
+        y[std::size_t((p * s.h + i) * s.w + j)] =
+            x[std::size_t((p * s.h + (s.h - 1 - i)) * s.w + (s.w - 1 - j))];
+      }
+    }
+  }
+  return y;
+}
+
 std::vector<float> pixel_shuffle(std::span<const float> x, Nchw small, int r) {
   std::vector<float> y(x.size());
   for_each_shuffled(small, r, [&](std::size_t si, std::size_t bi) { y[bi] = x[si]; });

@@ -30,4 +30,7 @@ void channel_affine_backward(std::span<const float> x, Nchw s, std::span<const f
 std::vector<float> pixel_shuffle(std::span<const float> x, Nchw small, int r);
 std::vector<float> pixel_unshuffle(std::span<const float> big, Nchw small, int r);
 
+// y[n, c, i, j] = x[n, c, h − 1 − i, w − 1 − j].
+std::vector<float> flip_spatial(std::span<const float> x, Nchw s);
+
 }  // namespace vkjr2::ref

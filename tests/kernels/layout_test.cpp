@@ -202,6 +202,31 @@ TEST(LayoutKernels, PixelShuffleMatchesReference) {
   });
 }
 
+TEST(LayoutKernels, FlipSpatialMatchesReference) {
+  // A 3×3 weight (the conv backward's use), one pixel, rows past a 256 group.
+  const std::vector<Shape> edges = {{4, 1, 3, 3}, {1, 1, 1, 1}, {2, 3, 17, 20}, {1, 2, 1, 300}};
+  test::check_op("flip_spatial", {.seed = 706, .cases = 7}, [&](test::OpCase& c) {
+    const Shape s = c.edge_or(edges, [&] { return c.nchw(3, 8, 30, 30); });
+    c.describe("x " + s.str());
+    const auto xv = c.floats(s.numel());
+    Tensor x = c.tensor(s, xv), y = c.empty(s), back = c.empty(s);
+    Stream st(c.device);
+    kernels::flip_spatial(st, x, y);
+    kernels::flip_spatial(st, y, back);
+    st.run();
+    c.expect("y", y, ref::flip_spatial(xv, {s[0], s[1], s[2], s[3]}), test::kExact);
+    c.expect("flipped twice", back, xv, test::kExact);
+  });
+  Device& dev = test::device();
+  Stream st(dev);
+  test::expect_invalid_argument(
+      [&] {
+        kernels::flip_spatial(st, Tensor::empty(dev, {1, 1, 3, 3}),
+                              Tensor::empty(dev, {1, 1, 3, 4}));
+      },
+      "y");
+}
+
 // PyTorch's order: channel c·r² + i·r + j lands at row offset i, column offset j.
 TEST(LayoutKernels, PixelShuffleKnownValues) {
   Device& dev = test::device();
