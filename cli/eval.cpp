@@ -64,28 +64,34 @@ struct Method {
   bool classical = false;
 };
 
-Method parse_method(const Device& device, const std::string& text) {
-  Method m;
-  m.name = text;
-  if (text == "degraded") return m;
-  if (text == "classical") {
-    m.classical = true;
-    return m;
+// Checks a method's text before any work: its name, and its model file.
+// Returns the model file of a restored method (empty for the others).
+fs::path check_method(const std::string& text) {
+  if (text == "degraded" || text == "classical") return {};
+  if (text == "restored") {
+    check_input_file(jr2::default_restorer_path(), "--method restored (the shipped restorer)");
+    return jr2::default_restorer_path();
   }
-  if (text.rfind("restored", 0) == 0) {
-    const std::string path = text.size() > 9 && text[8] == ':' ? text.substr(9) : std::string();
-    const fs::path model = path.empty() ? jr2::default_restorer_path() : fs::path(path);
-    if (!text.empty() && text != "restored" && path.empty()) {
-      throw UsageError("--method", "'" + text + "'",
-                       "write restored or restored:MODEL.safetensors");
-    }
+  if (text.rfind("restored:", 0) == 0 && text.size() > 9) {
+    const fs::path model = text.substr(9);
     check_input_file(model, "--method " + text);
-    m.restorer = jr2::Restorer::load(device, model);
-    m.name = "restored:" + model.stem().string();
-    return m;
+    return model;
   }
   throw UsageError("--method", "unknown method '" + text + "'",
-                   "use degraded, classical, restored (the shipped restorer) or restored:MODEL");
+                   "use degraded, classical, restored (the shipped restorer) or "
+                   "restored:MODEL.safetensors");
+}
+
+Method load_method(const Device& device, const std::string& text) {
+  Method m;
+  m.name = text;
+  m.classical = text == "classical";
+  const fs::path model = check_method(text);
+  if (!model.empty()) {
+    m.restorer = jr2::Restorer::load(device, model);
+    m.name = "restored:" + model.stem().string();
+  }
+  return m;
 }
 
 std::vector<std::string> split_list(const std::string& text) {
@@ -202,6 +208,7 @@ void run_eval(const EvalArgs& a) {
   const fs::path out(a.out);
   check_output_folder(out, "--out");
   const std::vector<std::string> method_texts = split_list(a.methods);
+  for (const std::string& text : method_texts) (void)check_method(text);
   if (a.split != "val" && a.split != "test") {
     throw UsageError("--split", "'" + a.split + "'", "use test (the reported split) or val");
   }
@@ -252,7 +259,7 @@ void run_eval(const EvalArgs& a) {
   std::vector<Method> method_list;
   std::vector<std::string> methods;
   for (const std::string& text : method_texts) {
-    method_list.push_back(parse_method(device, text));
+    method_list.push_back(load_method(device, text));
     methods.push_back(method_list.back().name);
   }
   const jr2::FaceAnalyzer analyzer(device);

@@ -208,8 +208,9 @@ TEST(CliEval, ABadManifestIsOneClearErrorBeforeAnyWork) {
   EXPECT_EQ(eval("[1, 2]").code, 2);
   EXPECT_FALSE(fs::exists(tmp.path / "o")) << "an output folder was made before the error";
   // Unknown method, split or sampler.
-  for (const char* opt : {"--method restored", "--split train", "--frames segments:0x2",
-                          "--input-sizes 100", "--align dlib"}) {
+  for (const char* opt :
+       {"--method sharpened", "--method restored:missing.safetensors", "--split train",
+        "--frames segments:0x2", "--input-sizes 100", "--align dlib"}) {
     r = run_cli("eval " + (bench / "manifest.json").string() + " --out " +
                 (tmp.path / "o").string() + " " + opt);
     EXPECT_EQ(r.code, 2) << opt << "\n" << r.output;
