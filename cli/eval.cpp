@@ -48,6 +48,7 @@ struct EvalArgs {
   std::string frames = "segments:4x2", aligns = "face_api,similarity", fusion = "norm_weighted";
   std::string input_sizes = "416,160,320";
   int resamples = 1000, max_probes = 0;
+  jr2::ClassicalOptions classical;
   std::uint64_t seed = 1;
   bool quiet = false, force = false, json_out = false;
 };
@@ -314,7 +315,7 @@ void run_eval(const EvalArgs& a) {
           unit = method_def.restorer->forward(tape, nets::Var(jr2::stack_frames(stream, window)))
                      .value();
         } else {
-          unit = jr2::classical_restore(stream, window);
+          unit = jr2::classical_restore(stream, window, a.classical);
         }
         // The pipeline and the quality take 0..255 pixels, clamped as a saved frame is.
         sampled.push_back(jr2::to_pixels(stream, unit));
@@ -384,6 +385,7 @@ void run_eval(const EvalArgs& a) {
       {"frames_per_probe", m.options.frames},
       {"methods", methods},
       {"sampler", jr2::to_string(protocol.sampler)},
+      {"classical", {{"sigma_px", a.classical.sigma_px}, {"amount", a.classical.amount}}},
       {"input_sizes", sizes},
       {"aligns", align_names},
       {"fusion", jr2::template_fusion_name(protocol.fusion)},
@@ -465,6 +467,14 @@ void add_eval(CLI::App& app) {
                   "(temporal mean + unsharp mask), restored (the shipped restorer) or "
                   "restored:MODEL.safetensors")
       ->default_val("degraded");
+  cmd->add_option("--classical-sigma", a->classical.sigma_px,
+                  "The classical method's unsharp-mask Gaussian σ in pixels")
+      ->default_val(a->classical.sigma_px)
+      ->check(finite_range(0.1, 20));
+  cmd->add_option("--classical-amount", a->classical.amount,
+                  "The classical method's unsharp-mask amount")
+      ->default_val(a->classical.amount)
+      ->check(finite_range(0, 10));
   cmd->add_option("--split", a->split, "Which split to evaluate: test or val")->default_val("test");
   cmd->add_option("--frames", a->frames, "Frame sampler: segments:SxR, uniform:K or all")
       ->default_val("segments:4x2");
