@@ -94,11 +94,12 @@ std::vector<fs::path> candidates(const char* program) {
                 "cannot run " + p.string() + ": " + std::strerror(errno),
                 "check that the file is an executable for this machine");
   }
-  throw Error("vkjr2 bench " + std::string(b.name),
-              "the benchmark program " + std::string(b.program) +
-                  " is not built or installed (looked for " + looked + ")",
-              "build with -DVKJR2_BUILD_BENCH=ON (sim and kernels are built with the command "
-              "runner), or point VKJR2_BENCH_DIR at the folder that holds it");
+  throw Error(
+      "vkjr2 bench " + std::string(b.name),
+      "the benchmark program " + std::string(b.program) +
+          " is not built or installed (looked for " + looked + ")",
+      "build with -DVKJR2_BUILD_BENCH=ON (sim, kernels and restore are built with the command "
+      "runner), or point VKJR2_BENCH_DIR at the folder that holds it");
 }
 
 }  // namespace
