@@ -74,7 +74,7 @@ fs::path check_method(const std::string& text) {
     return jr2::default_restorer_path();
   }
   if (text.rfind("restored:", 0) == 0 && text.size() > 9) {
-    const fs::path model = text.substr(9);
+    fs::path model = text.substr(9);
     check_input_file(model, "--method " + text);
     return model;
   }

@@ -83,7 +83,7 @@ struct TrainArgs {
 void load_images(const TrainArgs& a, int crop, std::vector<jr2::TrainImage>& train,
                  std::vector<jr2::TrainImage>& val) {
   std::vector<std::string> dirs = a.images;
-  if (dirs.empty()) dirs.push_back(kDefaultImages);
+  if (dirs.empty()) dirs.emplace_back(kDefaultImages);
   std::size_t small = 0, image_index = 0;
   for (const std::string& d : dirs) {
     if (dirs.size() == 1 && d == kDefaultImages && !fs::is_directory(d)) {

@@ -79,7 +79,10 @@ std::vector<float> cut_clip(const HostTensor& rgb, const CropPlan& c, int crop) 
       }
       const int oj = c.mirror ? crop - 1 - j : j;
       for (int ch = 0; ch < 3; ++ch) {
-        out[std::size_t((ch * crop + i) * crop + oj)] = float(acc[ch] / (n * n) / 255.0);
+        const std::size_t at_px =
+            (std::size_t(ch) * std::size_t(crop) + std::size_t(i)) * std::size_t(crop) +
+            std::size_t(oj);
+        out[at_px] = float(acc[ch] / (n * n) / 255.0);
       }
     }
   }
@@ -416,9 +419,10 @@ void RestoreTrainer::load_checkpoint(const std::filesystem::path& path) {
   for (const auto& [key, value] : options_metadata()) {
     const auto it = file.metadata.find(key);
     if (it == file.metadata.end() || it->second != value) {
-      differ += (differ.empty() ? "" : ", ") + key + " (checkpoint " +
-                (it == file.metadata.end() ? std::string("none") : it->second) + ", now " + value +
-                ")";
+      differ += differ.empty() ? "" : ", ";
+      differ += key + " (checkpoint ";
+      differ += it == file.metadata.end() ? std::string("none") : it->second;
+      differ += ", now " + value + ")";
     }
   }
   require(differ.empty(), path.string() + " was made with other settings: " + differ,

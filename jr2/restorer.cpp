@@ -67,7 +67,8 @@ int parse_int(const std::string& text, const std::string& what) {
 
 // Multiply-adds of a convolution over an output of `pixels` pixels.
 double conv_macs(int cin, int cout, int k, int groups, double pixels) {
-  return double(cout) * double(cin / groups) * k * k * pixels;
+  const int per_group = cin / groups;
+  return double(cout) * double(per_group) * k * k * pixels;
 }
 
 // One NAFBlock of width c over `pixels` pixels: its convolutions' multiply-adds
@@ -112,7 +113,9 @@ std::vector<int> parse_block_list(const std::string& text, const std::string& wh
     const std::size_t comma = text.find(',', start);
     const std::string item =
         text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
-    const int v = parse_int(item, what + " (\"" + text + "\")");
+    std::string where = what;
+    where += " (\"" + text + "\")";
+    const int v = parse_int(item, where);
     out.push_back(v);
     if (comma == std::string::npos) break;
     start = comma + 1;
@@ -175,7 +178,8 @@ double RestorerConfig::flops(std::int64_t height, std::int64_t w) const {
   validate();
   const int levels = this->levels();
   const std::int64_t m = std::int64_t(1) << levels;
-  const double hp = double((height + m - 1) / m * m), wp = double((w + m - 1) / m * m);
+  const std::int64_t hp_px = (height + m - 1) / m * m, wp_px = (w + m - 1) / m * m;
+  const double hp = double(hp_px), wp = double(wp_px);
   double f = 2 * (conv_macs(3 * frames, width, 3, 1, hp * wp) + conv_macs(width, 3, 3, 1, hp * wp));
   f += 3 * hp * wp;  // + the reference frame
   for (int i = 0; i < levels; ++i) {
@@ -190,8 +194,9 @@ double RestorerConfig::flops(std::int64_t height, std::int64_t w) const {
     const int c = width << (levels - i);
     const double px = hp * wp / double(std::int64_t(1) << (2 * (levels - i)));
     f += 2 * conv_macs(c, 2 * c, 1, 1, px);
-    f += double(c / 2) * px * 4;  // the skip's add
-    f += dec_blocks[std::size_t(i)] * block_flops(c / 2, px * 4);
+    const int half = c / 2;
+    f += double(half) * px * 4;  // the skip's add
+    f += dec_blocks[std::size_t(i)] * block_flops(half, px * 4);
   }
   return f;
 }
@@ -345,15 +350,15 @@ Tensor stack_frames(Stream& stream, std::span<const Tensor> frames) {
                             "pass frames of one shape [1, 3, H, W]");
     }
   }
-  const Tensor y =
-      Tensor::empty(stream.device(), Shape{1, 3 * std::int64_t(frames.size()), s[2], s[3]});
+  Tensor y = Tensor::empty(stream.device(), Shape{1, 3 * std::int64_t(frames.size()), s[2], s[3]});
   kernels::concat_channels(stream, frames, y);
   return y;
 }
 
 Tensor to_pixels(Stream& stream, const Tensor& unit) {
   const Device& dev = stream.device();
-  const Tensor a = Tensor::empty(dev, unit.shape()), b = Tensor::empty(dev, unit.shape());
+  const Tensor a = Tensor::empty(dev, unit.shape());
+  Tensor b = Tensor::empty(dev, unit.shape());
   kernels::relu(stream, unit, a);                     // max(x, 0)
   kernels::scale_shift(stream, a, -1.f, 1.f, b);      // 1 − max(x, 0)
   kernels::relu(stream, b, a);                        // max(1 − max(x, 0), 0)
@@ -397,7 +402,8 @@ Tensor classical_restore(Stream& stream, std::span<const Tensor> frames,
   for (int c = 0; c < 3; ++c) {
     for (int i = 0; i < k; ++i) {
       for (int j = 0; j < k; ++j) {
-        gw[std::size_t((c * k + i) * k + j)] = float(g[std::size_t(i)] * g[std::size_t(j)]);
+        gw[(std::size_t(c) * std::size_t(k) + std::size_t(i)) * std::size_t(k) + std::size_t(j)] =
+            float(g[std::size_t(i)] * g[std::size_t(j)]);
       }
     }
   }
@@ -426,7 +432,7 @@ Tensor classical_restore(Stream& stream, std::span<const Tensor> frames,
                   conv_params(r, 1, 3));
   const Tensor normalized = Tensor::empty(dev, Shape{1, 3, h, w});
   kernels::mul(stream, blurred, Tensor::from(dev, Shape{1, 3, h, w}, norm), normalized);
-  const Tensor out = Tensor::empty(dev, Shape{1, 3, h, w});
+  Tensor out = Tensor::empty(dev, Shape{1, 3, h, w});
   kernels::scale_shift(stream, mean, float(1 + o.amount), 0.f, out);
   kernels::axpy(stream, float(-o.amount), normalized, out);
   return out;

@@ -23,7 +23,7 @@ using vkjr2::test::TempDir;
 
 // Four textured 40×36 images: 3 to train on, every 4th (the first) held out.
 fs::path write_images(const fs::path& dir) {
-  const fs::path images = dir / "images";
+  fs::path images = dir / "images";
   fs::create_directories(images);
   for (int i = 0; i < 4; ++i) {
     cv::Mat img(36, 40, CV_8UC3);
