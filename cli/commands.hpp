@@ -13,6 +13,7 @@ void add_simulate(CLI::App& app);       // simulate.cpp
 void add_sim_train(CLI::App& app);      // sim_train.cpp
 void add_restore_train(CLI::App& app);  // restore_train.cpp
 void add_restore(CLI::App& app);        // restore.cpp
+void add_restore_study(CLI::App& app);  // restore_study.cpp: wave-clips, restore-score
 void add_wave(CLI::App& app);           // wave.cpp
 void add_bench(CLI::App& app);          // bench.cpp: runs bench/'s programs
 void add_sim_validate(CLI::App& app);   // sim_validate.cpp

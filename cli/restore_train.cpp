@@ -14,6 +14,7 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <map>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -25,15 +26,12 @@
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
+#include "train_images.hpp"
 
 namespace vkjr2::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-constexpr const char* kDefaultImages = "/usr/share/doc/opencv-doc/examples/data";
-// Frames of a video used for training: every kVideoStride-th, --video-frames of them.
-constexpr std::size_t kVideoStride = 10;
 
 // --config FILE: a JSON or YAML map of this command's long option names
 // (without the dashes) to values; lists for multi-value options. Options
@@ -71,66 +69,13 @@ class YamlConfig : public CLI::Config {
 
 struct TrainArgs {
   std::string output, checkpoint, log_path, device, enc = "1,1,1", dec = "1,1,1";
-  std::vector<std::string> images;
+  std::vector<std::string> images, blur_models;
   std::vector<double> d_over_r0{1, 8}, scale{0.4, 1.0};
+  bool uncorrelated_high_order = false;
   int val_every = 5, video_frames = 12, checkpoint_every = 100, eval_every = 250;
   jr2::RestoreTrainOptions o;
   bool resume = false, json_out = false, quiet = false, force = false;
 };
-
-// The clean images: every image (and video_frames frames of every video)
-// directly inside each folder; every val_every-th image by name is held out.
-void load_images(const TrainArgs& a, int crop, std::vector<jr2::TrainImage>& train,
-                 std::vector<jr2::TrainImage>& val) {
-  std::vector<std::string> dirs = a.images;
-  if (dirs.empty()) dirs.emplace_back(kDefaultImages);
-  std::size_t small = 0, image_index = 0;
-  for (const std::string& d : dirs) {
-    if (dirs.size() == 1 && d == kDefaultImages && !fs::is_directory(d)) {
-      throw UsageError("restore-train", std::string(kDefaultImages) + " does not exist",
-                       "install Debian's opencv-doc (scripts/setup) or pass --images DIR");
-    }
-    check_input_folder(d, "--images");
-    for (const fs::path& p :
-         list_files(d, [](const fs::path& f) { return is_image_path(f) || is_video_path(f); })) {
-      // A file that cannot be read is reported and left out (Debian's
-      // opencv-doc ships a truncated tree.avi).
-      try {
-        if (is_video_path(p)) {
-          std::vector<jr2::TrainImage> frames;
-          read_video(p, kVideoStride, std::size_t(a.video_frames),
-                     [&](std::size_t i, const Image& im) {
-                       if (im.shape[0] >= crop && im.shape[1] >= crop) {
-                         frames.push_back({p.filename().string() + "#" + std::to_string(i), im});
-                       }
-                     });
-          for (auto& f : frames) train.push_back(std::move(f));
-          continue;
-        }
-        Image im = read_image(p);
-        if (im.shape[0] < crop || im.shape[1] < crop) {
-          ++small;
-          continue;
-        }
-        const bool held_out = a.val_every > 0 && image_index % std::size_t(a.val_every) == 0;
-        ++image_index;
-        (held_out ? val : train).push_back({p.filename().string(), std::move(im)});
-      } catch (const Error& e) {
-        log_warn(describe_error(e) + " (left out)");
-      }
-    }
-  }
-  if (small > 0) {
-    log_info(std::to_string(small) + " images smaller than the " + std::to_string(crop) +
-             "² crop were left out");
-  }
-  if (train.empty() || val.empty()) {
-    throw UsageError("restore-train",
-                     std::to_string(train.size()) + " training and " + std::to_string(val.size()) +
-                         " held-out images of at least " + std::to_string(crop) + "² pixels",
-                     "pass --images folders with more images (or lower --crop, --val-every)");
-  }
-}
 
 void run_restore_train(TrainArgs& a) {
   check_extension(a.output, {".safetensors"}, "OUT");
@@ -148,6 +93,8 @@ void run_restore_train(TrainArgs& a) {
   o.d_over_r0_hi = a.d_over_r0[1];
   o.scale_lo = a.scale[0];
   o.scale_hi = a.scale[1];
+  o.correlate_high_order = !a.uncorrelated_high_order;
+  for (const auto& path : a.blur_models) check_input_file(path, "--blur-model");
   try {
     o.validate();
   } catch (const InvalidArgument& e) {
@@ -156,11 +103,22 @@ void run_restore_train(TrainArgs& a) {
   watch_output_folder(fs::path(a.output).parent_path());
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<jr2::TrainImage> train, val;
-  load_images(a, o.crop, train, val);
+  load_train_images("restore-train", a.images, a.val_every, a.video_frames, o.crop, train, val);
   const std::size_t n_train = train.size(), n_val = val.size();
   Device device = open_device(a.device);
-  jr2::RestoreTrainer trainer(device, o, std::move(train), std::move(val),
-                              sim::load_shipped_blur_models(device));
+  std::vector<std::shared_ptr<const sim::BlurModel>> blur;
+  std::string blur_names;
+  if (a.blur_models.empty()) {
+    blur = sim::load_shipped_blur_models(device);
+    blur_names = "shipped";
+  } else {
+    for (const auto& path : a.blur_models) {
+      blur.push_back(sim::load_blur_model(device, path));
+      blur_names += (blur_names.empty() ? "" : ",") + fs::path(path).filename().string();
+    }
+  }
+  jr2::RestoreTrainer trainer(device, o, std::move(train), std::move(val), std::move(blur));
+  const std::map<std::string, std::string> run_meta = {{"train.blur_models", blur_names}};
   if (a.resume) trainer.load_checkpoint(a.checkpoint);
   log_info("restore-train: " + std::to_string(n_train) + " training images, " +
            std::to_string(n_val) + " held out; " + std::to_string(o.net.parameter_count()) +
@@ -205,15 +163,17 @@ void run_restore_train(TrainArgs& a) {
     const jr2::RestoreStepReport r = trainer.train_step();
     loss_avg += r.loss;
     ++loss_n;
-    write_log({{"step", r.step},
-               {"loss", r.loss},
-               {"lr", r.lr},
-               {"grad_norm", r.grad_norm},
-               {"sim_seconds", r.sim_seconds},
-               {"train_seconds", r.train_seconds}});
+    nlohmann::json line = {{"step", r.step},
+                           {"loss", r.loss},
+                           {"lr", r.lr},
+                           {"grad_norm", r.grad_norm},
+                           {"sim_seconds", r.sim_seconds},
+                           {"train_seconds", r.train_seconds}};
+    if (o.explicit_weight > 0) line["consistency"] = r.consistency;
+    write_log(line);
     bar.update(std::size_t(r.step));
     if (r.step % a.checkpoint_every == 0 || r.step == o.steps) {
-      trainer.save_checkpoint(a.checkpoint);
+      trainer.save_checkpoint(a.checkpoint, run_meta);
     }
     if (r.step % a.eval_every == 0 || r.step == o.steps) {
       bar.done();
@@ -229,6 +189,7 @@ void run_restore_train(TrainArgs& a) {
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   auto meta = trainer.options_metadata();
+  meta.insert(run_meta.begin(), run_meta.end());
   meta["train.held_out_psnr"] = readable(last_eval.psnr_restored);
   meta["train.held_out_psnr_degraded"] = readable(last_eval.psnr_degraded);
   trainer.restorer().save(a.output, meta);
@@ -342,6 +303,17 @@ void add_restore_train(CLI::App& app) {
   cmd->add_option("--refresh", o.refresh, "New clips simulated per step")
       ->default_val(o.refresh)
       ->check(integer_range(0, 100000));
+  cmd->add_option("--explicit", o.explicit_weight,
+                  "Weight of the consistency loss: the restored frame re-degraded with the "
+                  "input's own turbulence draws, against the input (0: off)")
+      ->default_val(o.explicit_weight)
+      ->check(finite_range(0.0, 100.0));
+  cmd->add_flag("--uncorrelated-high-order", a->uncorrelated_high_order,
+                "Simulate with the high-order modes independent between grid points (a simpler "
+                "simulator, for fidelity studies)");
+  cmd->add_option("--blur-model", a->blur_models,
+                  "PSF basis + P2S network (.safetensors from vkjr2 sim-train) the simulator "
+                  "uses; repeatable; default: the shipped ones");
   cmd->add_option("--val-clips", o.val_clips, "Held-out clips scored")
       ->default_val(o.val_clips)
       ->check(integer_range(1, 4096));

@@ -18,15 +18,11 @@ namespace {
 
 using ojson = nlohmann::ordered_json;
 
-// SplitMix64 (Steele, Lea, Flood 2014): a probe's random numbers from
-// (seed, index) alone.
+// SplitMix64: a probe's random numbers from (seed, index) alone.
 std::uint64_t splitmix(std::uint64_t x) {
-  x += 0x9e3779b97f4a7c15ULL;
-  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
-  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
-  return x ^ (x >> 31);
+  return detail::splitmix_finalize(x + detail::kGoldenGamma);
 }
-double unit_interval(std::uint64_t bits) { return double(bits >> 11) * 0x1.0p-53; }
+using detail::unit_interval;
 
 // Fisher–Yates with draws from SplitMix64 (the same on every platform).
 template <class T>

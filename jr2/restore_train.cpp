@@ -1,9 +1,12 @@
 #include <vkjr2/jr2/benchmark.hpp>
 #include <vkjr2/jr2/restore_train.hpp>
 #include <vkjr2/kernels/basic.hpp>
+#include <vkjr2/kernels/check.hpp>
 #include <vkjr2/kernels/elementwise.hpp>
 #include <vkjr2/kernels/metrics.hpp>
+#include <vkjr2/kernels/psf_conv.hpp>
 #include <vkjr2/kernels/reduce.hpp>
+#include <vkjr2/kernels/warp.hpp>
 #include <vkjr2/nets/checkpoint.hpp>
 #include <vkjr2/nets/ops.hpp>
 #include <vkjr2/nets/safetensors.hpp>
@@ -17,26 +20,25 @@
 #include <random>
 #include <utility>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
 namespace k = kernels;
+using nets::Var;
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
 }
 
+// A seed from two numbers.
 std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
-  std::uint64_t z = a * 0x9e3779b97f4a7c15ull + b + 0x632be59bd9b4e019ull;
-  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-  z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-  return z ^ (z >> 31);
+  return detail::splitmix_finalize(a * detail::kGoldenGamma + b + 0x632be59bd9b4e019ULL);
 }
 
-// Uniform [0, 1) from 53 bits (std::uniform_real_distribution is not
-// bit-exact across standard libraries).
-double unit(std::mt19937_64& rng) { return double(rng() >> 11) * 0x1.0p-53; }
+double unit(std::mt19937_64& rng) { return detail::unit_interval(rng()); }
 
 // Seeds of the held-out clips: fixed, so every run scores the same clips.
 constexpr std::uint64_t kValSeed = 0x5eed0fa11d47a5e7ull;
@@ -124,6 +126,57 @@ void RestoreTrainOptions::validate() const {
           "use 0..pool new clips per step");
   require(val_clips >= 1 && val_clips <= 4096, "--val-clips " + std::to_string(val_clips),
           "use 1..4096 held-out clips");
+  require(std::isfinite(explicit_weight) && explicit_weight >= 0 && explicit_weight <= 100,
+          "--explicit " + std::to_string(explicit_weight),
+          "use a consistency weight in [0, 100] (0: off; 0.5 is a start)");
+}
+
+std::vector<float> held_out_crop(const HostTensor& rgb, int size) {
+  const double h = double(rgb.shape[0]), w = double(rgb.shape[1]);
+  CropPlan c;
+  c.side = std::max(double(size), 0.5 * std::min(h, w));
+  c.x0 = (w - c.side) / 2;
+  c.y0 = (h - c.side) / 2;
+  return cut_clip(rgb, c, size);
+}
+
+Var redegrade(nets::Tape& tape, const Var& x, const Tensor& flow, const Tensor& beta,
+              const Tensor& basis) {
+  const Shape& s = x.shape();
+  const char* op = "jr2::redegrade";
+  if (s.rank() != 4) throw InvalidArgument(op, "x has shape " + s.str(), "pass [B, C, H, W]");
+  k::require_shape(flow, Shape{s[0], 2, s[2], s[3]}, op, "flow");
+  if (beta.shape().rank() != 4 || beta.shape()[0] != s[0] || beta.shape()[2] != s[2] ||
+      beta.shape()[3] != s[3] || basis.shape().rank() != 3 || basis.shape()[0] != beta.shape()[1]) {
+    throw InvalidArgument(op,
+                          "beta " + beta.shape().str() + " and basis " + basis.shape().str() +
+                              " do not fit x " + s.str(),
+                          "pass beta [B, K, H, W] and basis [K, S, S]");
+  }
+  Stream& stream = tape.stream();
+  const Device& dev = x.value().device();
+  Tensor warped = Tensor::empty(dev, s), y = Tensor::empty(dev, s);
+  Tensor norm = Tensor::empty(dev, Shape{s[0], 1, s[2], s[3]});
+  k::warp(stream, x.value(), flow, warped, k::SamplePadding::border);
+  k::psf_conv(stream, warped, beta, basis, y, norm, {.normalize = true});
+  const bool grad = tape.needs_grad({&x});
+  Var out = tape.output(y, grad);
+  if (grad) {
+    tape.record([x, out, flow, beta, basis, warped, norm](nets::Tape& t) {
+      const Tensor& dy = nets::Tape::grad_of(out);
+      if (!dy.defined()) return;
+      const Device& d = dy.device();
+      const Tensor d_warped = Tensor::empty(d, warped.shape());
+      const Tensor d_beta = Tensor::empty(d, beta.shape());
+      k::psf_conv_backward(t.stream(), warped, beta, basis, out.value(), norm, dy, d_warped, d_beta,
+                           {.normalize = true});
+      nets::GradSlot gx = t.slot(x);
+      k::warp_backward(t.stream(), x.value(), flow, d_warped, &gx.target, nullptr,
+                       k::SamplePadding::border);
+      t.commit(gx);
+    });
+  }
+  return out;
 }
 
 struct RestoreTrainer::Impl {
@@ -138,8 +191,13 @@ struct RestoreTrainer::Impl {
   // The pool: clip k in slot k % pool; clips [pool_first, pool_end) present.
   Tensor pool_frames, pool_clean;
   std::int64_t pool_first = 0, pool_end = 0;
+  // With explicit_weight: each clip's reference-frame maps [pool, 2, s, s],
+  // [pool, K, s, s] and the basis they weight.
+  Tensor pool_flow, pool_beta, basis;
   Tensor val_frames, val_clean;
-  Tensor batch_frames, batch_clean, norms;
+  Tensor batch_frames, batch_clean, batch_flow, batch_beta, batch_reference, norms;
+  std::vector<std::pair<std::string, Var>> params;
+  std::vector<Tensor> squares;  // per parameter, for the gradient norm and clipping
   double pending_sim_seconds = 0;
 
   Impl(const Device& d, const RestoreTrainOptions& options, std::vector<TrainImage> tr,
@@ -162,19 +220,53 @@ struct RestoreTrainer::Impl {
     pool_clean = Tensor::empty(d, Shape{o.pool, 3, s, s});
     batch_frames = Tensor::empty(d, Shape{o.batch, t3, s, s});
     batch_clean = Tensor::empty(d, Shape{o.batch, 3, s, s});
-    norms = Tensor::empty(d, Shape{std::int64_t(4 * net.named_parameters().size())});
+    params = net.named_parameters();
+    for (const auto& [name, v] : params) squares.push_back(Tensor::empty(d, v.shape()));
+    norms = Tensor::empty(d, Shape{std::int64_t(4 * params.size())});
+    if (o.explicit_weight > 0) {
+      // The maps' shapes and the basis, from a simulator of these settings.
+      const sim::Simulator probe(d, probe_sim_params(o.d_over_r0_lo, int(s)), blur, sim_options());
+      const sim::BlurModel* model = probe.blur_model(0);
+      require(model != nullptr, "--explicit without a blur model",
+              "pass the simulator's blur models (sim::load_shipped_blur_models)");
+      for (int c = 1; c < 3; ++c) {
+        require(probe.blur_model(c) == model && &probe.beta(c) == &probe.beta(0),
+                "--explicit with a blur model per channel",
+                "use blur models whose channels share one β (one wavelength)");
+      }
+      basis = model->basis();
+      const std::int64_t kb = basis.shape()[0];
+      pool_flow = Tensor::empty(d, Shape{o.pool, 2, s, s});
+      pool_beta = Tensor::empty(d, Shape{o.pool, kb, s, s});
+      batch_flow = Tensor::empty(d, Shape{o.batch, 2, s, s});
+      batch_beta = Tensor::empty(d, Shape{o.batch, kb, s, s});
+      batch_reference = Tensor::empty(d, Shape{o.batch, 3, s, s});
+    }
   }
 
-  // Simulates T frames of the clean planes into frames[3T, s, s] (a view).
+  sim::SimOptions sim_options() const {
+    sim::SimOptions so = probe_sim_options();
+    so.field.correlate_high_order = o.correlate_high_order;
+    return so;
+  }
+
+  // Simulates T frames of the clean planes into frames[3T, s, s] (a view);
+  // the reference frame's flow and β into the slot's maps when `slot` ≥ 0
+  // and the maps are kept.
   void simulate(const std::vector<float>& clean, double d_over_r0, std::uint64_t sim_seed,
-                const Tensor& frames) {
-    const int s = o.crop;
-    sim::Simulator simulator(device, probe_sim_params(d_over_r0, s), blur, probe_sim_options());
+                const Tensor& frames, std::int64_t slot = -1) {
+    const std::int64_t s = o.crop;
+    sim::Simulator simulator(device, probe_sim_params(d_over_r0, int(s)), blur, sim_options());
     simulator.reset(sim_seed);
     const Tensor x = Tensor::from(device, Shape{1, 3, s, s}, clean);
     const std::int64_t frame_size = 3LL * s * s;
     for (int f = 0; f < o.net.frames; ++f) {
       simulator.frame(stream, x, frames.view(Shape{1, 3, s, s}, f * frame_size));
+      if (slot >= 0 && pool_flow.defined() && f == o.net.reference_frame()) {
+        const std::int64_t kb = basis.shape()[0];
+        k::copy(stream, simulator.flow(), pool_flow.view(Shape{1, 2, s, s}, slot * 2 * s * s));
+        k::copy(stream, simulator.beta(), pool_beta.view(Shape{1, kb, s, s}, slot * kb * s * s));
+      }
     }
     stream.run();
   }
@@ -196,7 +288,7 @@ struct RestoreTrainer::Impl {
     const std::int64_t slot = k % o.pool;
     const std::int64_t t3 = 3LL * o.net.frames, s = o.crop;
     pool_clean.view(Shape{1, 3, s, s}, slot * 3 * s * s).upload(clean);
-    simulate(clean, d, sim_seed, pool_frames.view(Shape{1, t3, s, s}, slot * t3 * s * s));
+    simulate(clean, d, sim_seed, pool_frames.view(Shape{1, t3, s, s}, slot * t3 * s * s), slot);
   }
 
   // Makes the pool hold clips [first, first + pool).
@@ -220,13 +312,7 @@ struct RestoreTrainer::Impl {
     val_frames = Tensor::empty(device, Shape{v, t3, s, s});
     val_clean = Tensor::empty(device, Shape{v, 3, s, s});
     for (std::int64_t i = 0; i < v; ++i) {
-      const HostTensor& img = val[std::size_t(i) % val.size()].rgb;
-      const double h = double(img.shape[0]), w = double(img.shape[1]);
-      CropPlan c;
-      c.side = std::max(double(s), 0.5 * std::min(h, w));
-      c.x0 = (w - c.side) / 2;
-      c.y0 = (h - c.side) / 2;
-      const std::vector<float> clean = cut_clip(img, c, int(s));
+      const std::vector<float> clean = held_out_crop(val[std::size_t(i) % val.size()].rgb, int(s));
       const double u = v > 1 ? double(i) / double(v - 1) : 0.5;
       const double d = o.d_over_r0_lo * std::pow(o.d_over_r0_hi / o.d_over_r0_lo, u);
       val_clean.view(Shape{1, 3, s, s}, i * 3 * s * s).upload(clean);
@@ -288,25 +374,38 @@ RestoreStepReport RestoreTrainer::train_step() {
             m.batch_frames.view(Shape{t3 * px}, b * t3 * px));
     k::copy(m.stream, m.pool_clean.view(Shape{3 * px}, slot * 3 * px),
             m.batch_clean.view(Shape{3 * px}, b * 3 * px));
+    if (m.pool_flow.defined()) {
+      const std::int64_t kb = m.basis.shape()[0];
+      k::copy(m.stream, m.pool_flow.view(Shape{2 * px}, slot * 2 * px),
+              m.batch_flow.view(Shape{2 * px}, b * 2 * px));
+      k::copy(m.stream, m.pool_beta.view(Shape{kb * px}, slot * kb * px),
+              m.batch_beta.view(Shape{kb * px}, b * kb * px));
+    }
   }
   nets::Tape tape(m.stream);
-  const nets::Var out = m.net.forward(tape, nets::Var(m.batch_frames));
-  const nets::Var loss = nets::charbonnier_loss(tape, out, nets::Var(m.batch_clean), 1e-3f);
+  const Var out = m.net.forward(tape, Var(m.batch_frames));
+  Var loss = nets::charbonnier_loss(tape, out, Var(m.batch_clean), 1e-3f);
+  Var consistency;
+  if (m.pool_flow.defined()) {
+    k::slice(m.stream, m.batch_frames, {3LL * o.net.reference_frame(), 0, 0}, m.batch_reference);
+    const Var again = redegrade(tape, out, m.batch_flow, m.batch_beta, m.basis);
+    consistency = nets::charbonnier_loss(tape, again, Var(m.batch_reference), 1e-3f);
+    loss = nets::add(tape, loss, nets::scale_shift(tape, consistency, o.explicit_weight));
+  }
   tape.backward(loss);
   // Global gradient norm: Σ g² per parameter into norms[4i] (16-byte aligned views).
-  const auto params = m.net.named_parameters();
-  std::vector<Tensor> squares;
+  const auto& params = m.params;
   for (std::size_t i = 0; i < params.size(); ++i) {
-    const nets::Var& v = params[i].second;
+    const Var& v = params[i].second;
     if (!v.has_grad()) continue;
-    Tensor sq = Tensor::empty(m.device, v.grad().shape());
+    const Tensor& sq = m.squares[i];
     k::mul(m.stream, v.grad(), v.grad(), sq);
     k::sum_all(m.stream, sq.reshape(Shape{sq.numel()}),
                m.norms.view(Shape{1}, 4 * std::int64_t(i)));
-    squares.push_back(std::move(sq));
   }
   m.stream.run();
   r.loss = loss.value().download()[0];
+  if (consistency.defined()) r.consistency = consistency.value().download()[0];
   const std::vector<float> norms = m.norms.download();
   double sum = 0;
   for (std::size_t i = 0; i < params.size(); ++i) {
@@ -321,12 +420,11 @@ RestoreStepReport RestoreTrainer::train_step() {
   }
   if (o.clip_grad_norm > 0 && r.grad_norm > o.clip_grad_norm) {
     const float f = float(o.clip_grad_norm / r.grad_norm);
-    for (std::size_t i = 0, j = 0; i < params.size(); ++i) {
-      const nets::Var& v = params[i].second;
+    for (std::size_t i = 0; i < params.size(); ++i) {
+      const Var& v = params[i].second;
       if (!v.has_grad()) continue;
-      k::scale_shift(m.stream, v.grad(), f, 0.f, squares[j]);
-      k::copy(m.stream, squares[j], v.grad());
-      ++j;
+      k::scale_shift(m.stream, v.grad(), f, 0.f, m.squares[i]);
+      k::copy(m.stream, m.squares[i], v.grad());
     }
   }
   r.lr = m.schedule.at(std::uint32_t(s));
@@ -357,8 +455,8 @@ RestoreEvalReport RestoreTrainer::evaluate() {
   for (std::int64_t b0 = 0; b0 < v; b0 += o.batch) {
     const std::int64_t n = std::min<std::int64_t>(o.batch, v - b0);
     nets::Tape tape(m.stream, false);
-    const nets::Var out =
-        m.net.forward(tape, nets::Var(m.val_frames.view(Shape{n, t3, s, s}, b0 * t3 * s * s)));
+    const Var out =
+        m.net.forward(tape, Var(m.val_frames.view(Shape{n, t3, s, s}, b0 * t3 * s * s)));
     k::copy(m.stream, out.value(), restored.view(Shape{n, 3, s, s}, b0 * 3 * s * s));
     m.stream.run();
   }
@@ -402,6 +500,8 @@ std::map<std::string, std::string> RestoreTrainer::options_metadata() const {
   m["train.pool"] = std::to_string(o.pool);
   m["train.refresh"] = std::to_string(o.refresh);
   m["train.seed"] = std::to_string(o.seed);
+  m["train.explicit_weight"] = num(o.explicit_weight);
+  m["train.correlate_high_order"] = o.correlate_high_order ? "true" : "false";
   m["train.images"] = std::to_string(impl_->train.size());
   return m;
 }

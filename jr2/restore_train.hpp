@@ -11,13 +11,18 @@
 // s·refresh + pool − 1, a resumed run rebuilds it and goes on bit-exactly.
 //
 // Loss: Charbonnier (ε = 1e-3) between the restored reference frame and the
-// clean crop. AdamW with linear warm-up and cosine decay, global gradient
+// clean crop; with explicit_weight > 0 (explicit modeling, after PiRN) plus
+// that weight × the Charbonnier distance between the restored frame
+// re-degraded by the simulator with the same draws that made the input
+// reference frame (its flow and β maps, kept with the clip) and that input
+// frame. AdamW with linear warm-up and cosine decay, global gradient
 // norm clipping. The held-out set: fixed clips from the validation images
 // (centre crops, strengths spread over the range), scored by PSNR/SSIM of the
 // restored and of the degraded reference frame.
 #pragma once
 
 #include <vkjr2/jr2/restorer.hpp>
+#include <vkjr2/nets/autograd.hpp>
 #include <vkjr2/nets/optimizer.hpp>
 #include <vkjr2/runtime/host_tensor.hpp>
 #include <vkjr2/sim/blur_model.hpp>
@@ -45,6 +50,11 @@ struct RestoreTrainOptions {
   int pool = 64, refresh = 1;
   int val_clips = 8;
   std::uint64_t seed = 1;
+  // Weight of the re-degradation consistency loss (0: internalizing only).
+  float explicit_weight = 0.f;
+  // The simulator's high-order modes correlated across the field (false:
+  // the simpler simulator of sim::FieldOptions::correlate_high_order).
+  bool correlate_high_order = true;
 
   // Throws InvalidArgument naming the option and the fix.
   void validate() const;
@@ -56,9 +66,24 @@ struct TrainImage {
   HostTensor rgb;
 };
 
+// A held-out clip's clean frame: the centre window of half the image's
+// shorter side (at least `size`), resampled to size² as [3, size, size]
+// planes in 0..1 (box-prefiltered bilinear samples). rgb: H×W×3, 0..255.
+std::vector<float> held_out_crop(const HostTensor& rgb, int size);
+
+// The simulator's frame formation for fixed turbulence as a differentiable
+// op of the image (sim::Simulator::frame without noise):
+//   y = Σ_k ψ_k ⊛ (β_k ⊙ W(x; flow)) / Σ_k ψ_k ⊛ β_k
+// x [B, C, H, W] with C ≤ 4; flow [B, 2, H, W] (Simulator::flow()); beta
+// [B, K, H, W] (Simulator::beta(), shared by the channels); basis [K, S, S]
+// (BlurModel::basis()). The gradient reaches x only: the maps are fixed draws.
+nets::Var redegrade(nets::Tape& tape, const nets::Var& x, const Tensor& flow, const Tensor& beta,
+                    const Tensor& basis);
+
 struct RestoreStepReport {
   int step = 0;  // the step just taken (1-based)
   double loss = 0, lr = 0, grad_norm = 0;
+  double consistency = 0;  // the consistency term (unweighted; 0 without explicit_weight)
   double sim_seconds = 0, train_seconds = 0;
 };
 

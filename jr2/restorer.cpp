@@ -15,6 +15,8 @@
 #include <cmath>
 #include <utility>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
@@ -30,10 +32,7 @@ class Seeds {
  public:
   explicit Seeds(std::uint32_t seed) : state_(seed) {}
   std::uint32_t next() {
-    std::uint64_t z = (state_ += 0x9e3779b97f4a7c15ull);
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return std::uint32_t((z ^ (z >> 31)) >> 32);
+    return std::uint32_t(detail::splitmix_finalize(state_ += detail::kGoldenGamma) >> 32);
   }
 
  private:

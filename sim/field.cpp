@@ -124,11 +124,14 @@ std::vector<float> TurbulenceField::embedding_eigenvalues() const {
   const double ifov = ifov_rad_;
   std::vector<float> torus(std::size_t(k_modes * mh * mw * 2), 0.f);
   for (std::int64_t k = 0; k < k_modes; ++k) {
+    // An uncorrelated mode is a delta at lag 0: a flat (white) spectrum.
+    const bool white = k >= 2 && !options_.correlate_high_order;
     for (std::int64_t r = 0; r < mh; ++r) {
       for (std::int64_t c = 0; c < mw; ++c) {
         const double dy = lag(r, mh) * step_y_ * ifov, dx = lag(c, mw) * step_x_ * ifov;
-        torus[std::size_t(((k * mh + r) * mw + c) * 2)] =
-            static_cast<float>((*correlation_)(static_cast<int>(k) + 2, dx, dy));
+        const double rho = white ? (r == 0 && c == 0 ? 1.0 : 0.0)
+                                 : (*correlation_)(static_cast<int>(k) + 2, dx, dy);
+        torus[std::size_t(((k * mh + r) * mw + c) * 2)] = static_cast<float>(rho);
       }
     }
   }

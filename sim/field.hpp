@@ -34,6 +34,12 @@ struct FieldOptions {
   // Lag-1 correlation of the seeds between consecutive frames (0: independent frames).
   double tilt_rho = 0.0;
   double high_order_rho = 0.0;
+  // false: the high-order modes a_4.. are independent from one grid point to
+  // the next (a white field; Noll's one-point covariance is kept), as in the
+  // simulators that correlated only the tilts across the field. The tilts
+  // stay correlated. A deliberately simpler simulator for fidelity studies
+  // (docs/restoration.md, study 2).
+  bool correlate_high_order = true;
 };
 
 class TurbulenceField {

@@ -1,11 +1,26 @@
-// What the evaluation's files share (internal to jr2/): unbiased bounded
-// random draws that are the same on every platform, and CSV fields.
+// What jr2/'s files share (internal): random draws that are the same on
+// every platform, and CSV fields.
 #pragma once
 
 #include <cstdint>
 #include <string>
 
 namespace vkjr2::jr2::detail {
+
+inline constexpr std::uint64_t kGoldenGamma = 0x9e3779b97f4a7c15ULL;
+
+// SplitMix64's output function (Steele, Lea, Flood 2014): a well-mixed
+// 64-bit value from any state; SplitMix64 itself is splitmix_finalize(state
+// += kGoldenGamma).
+constexpr std::uint64_t splitmix_finalize(std::uint64_t z) {
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+// Uniform [0, 1) from the top 53 bits (std::uniform_real_distribution is
+// not bit-exact across standard libraries).
+constexpr double unit_interval(std::uint64_t bits) { return double(bits >> 11) * 0x1.0p-53; }
 
 // A draw in [0, n) from `next()`, a source of uniform 64-bit values, without
 // modulo bias (std::uniform_int_distribution differs between libraries).

@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "support/cli_checks.hpp"
 #include "support/cli_files.hpp"
 #include "support/run_cli.hpp"
 
@@ -104,11 +105,12 @@ TEST(CliRestore, TrainsResumesAndRestores) {
   EXPECT_EQ(scores, 1);
 
   // The evaluation's classical and restored rows beside the degraded one, on
-  // a tiny benchmark (3 identities, weak, 3 frames; one alignment and
-  // detector size).
+  // a tiny benchmark (3 identities, weak, 3 frames or 2 under the
+  // sanitizers; one alignment and detector size).
   const fs::path bench = tmp.path / "bench", eval_out = tmp.path / "eval";
-  r = run_cli("dataset make --out " + bench.string() +
-              " --max-identities 3 --strengths weak --frames 3 --quiet");
+  const int ids = 3, frames = vkjr2::test::kSanitized ? 2 : 3;
+  r = run_cli("dataset make --out " + bench.string() + " --max-identities " + std::to_string(ids) +
+              " --strengths weak --frames " + std::to_string(frames) + " --quiet");
   ASSERT_EQ(r.code, 0) << r.output;
   r = run_cli("eval " + (bench / "manifest.json").string() + " --out " + eval_out.string() +
               " --method degraded,classical,restored:" + model.string() +
@@ -119,7 +121,7 @@ TEST(CliRestore, TrainsResumesAndRestores) {
   std::vector<std::string> methods;
   for (const json& row : j["rows"]) {
     methods.push_back(row["method"].get<std::string>());
-    EXPECT_EQ(row["probes"], 3);
+    EXPECT_EQ(row["probes"], ids);
     EXPECT_GT(row["psnr_db"]["value"].get<double>(), 10.0) << row.dump();
   }
   EXPECT_EQ(methods, (std::vector<std::string>{"degraded", "classical", "restored:r"}));
@@ -154,6 +156,58 @@ TEST(CliRestore, BadInputsAreClearErrors) {
               (tmp.path / "o.png").string());
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("missing.avi"), std::string::npos) << r.output;
+  // The study's commands: a blur model is not a clip set; absurd options.
+  r = run_cli("restore-score " + p2s.string());
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("not a clip set"), std::string::npos) << r.output;
+  r = run_cli("restore-train " + (tmp.path / "r.safetensors").string() + " --images " +
+              images.string() + " --explicit -1 --quiet");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--explicit"), std::string::npos) << r.output;
+  r = run_cli("restore-train " + (tmp.path / "r.safetensors").string() + " --images " +
+              images.string() + " --blur-model " + (tmp.path / "none.safetensors").string() +
+              " --quiet");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("none.safetensors"), std::string::npos) << r.output;
+  r = run_cli("wave-clips " + (tmp.path / "w.safetensors").string() + " --images " +
+              images.string() + " --clips 0 --quiet");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--clips"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(tmp.path / "w.safetensors"));
+}
+
+// Explicit training on the simpler simulator, a wave-optics clip set and
+// the score of the trained model on it (study 2 in miniature).
+TEST(CliRestore, ExplicitTrainingAndTheWaveOpticsScore) {
+  TempDir tmp("cli_restore_study");
+  const fs::path images = write_images(tmp.path);
+  const fs::path model = tmp.path / "e.safetensors", log = tmp.path / "log.jsonl";
+  const fs::path p2s = fs::path(VKJR2_SOURCE_DIR) / "artifacts" / "p2s_default.safetensors";
+  auto r = run_cli("restore-train " + model.string() + " --images " + images.string() + kTiny +
+                   " --steps 1 --explicit 0.5 --uncorrelated-high-order --blur-model " +
+                   p2s.string() + " --log " + log.string() + " --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream in(log);
+  std::string first;
+  std::getline(in, first);
+  EXPECT_GT(json::parse(first)["consistency"].get<double>(), 0) << first;
+
+  const fs::path clips = tmp.path / "wave.safetensors";
+  r = run_cli("wave-clips " + clips.string() + " --images " + images.string() +
+              " --val-every 4 --clips 1 --frames 2 --size 24 --screens 2 --quiet --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["clips"], 1);
+  const fs::path scores = tmp.path / "scores.json";
+  r = run_cli("restore-score " + clips.string() + " --model " + model.string() +
+              " --resamples 20 --out " + scores.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NE(r.output.find("gain over degraded"), std::string::npos) << r.output;
+  std::ifstream sf(scores);
+  const json j = json::parse(sf);
+  ASSERT_EQ(j["rows"].size(), 3u);
+  EXPECT_EQ(j["rows"][2]["method"], "e");
+  EXPECT_EQ(j["source"], "wave-optics");
+  EXPECT_GT(j["rows"][0]["psnr_db"]["value"].get<double>(), 5.0);
 }
 
 }  // namespace

@@ -1,5 +1,8 @@
+#include <vkjr2/jr2/benchmark.hpp>
 #include <vkjr2/jr2/restore_train.hpp>
+#include <vkjr2/nets/ops.hpp>
 #include <vkjr2/sim/p2s_blur_model.hpp>
+#include <vkjr2/sim/simulator.hpp>
 
 #include <gtest/gtest.h>
 
@@ -87,6 +90,88 @@ TEST(RestoreTrainer, ResumesFromACheckpointBitExactly) {
   EXPECT_GT(a.psnr_degraded, 5.0);
 }
 
+// Explicit modeling on the simpler simulator: the consistency term is
+// reported, and a resumed run still equals the straight one.
+TEST(RestoreTrainer, ExplicitTrainingResumesBitExactly) {
+  RestoreTrainOptions o = tiny();
+  o.explicit_weight = 0.5f;
+  o.correlate_high_order = false;
+  auto straight = trainer(o);
+  RestoreStepReport last;
+  for (int i = 0; i < 3; ++i) last = straight->train_step();
+  EXPECT_TRUE(std::isfinite(last.consistency) && last.consistency > 0);
+  EXPECT_GT(last.loss, last.consistency * 0.5);  // the total holds the weighted term
+  test::TempDir dir;
+  const auto ckpt = dir.path / "run.ckpt";
+  {
+    auto first = trainer(o);
+    first->train_step();
+    first->train_step();
+    first->save_checkpoint(ckpt);
+  }
+  auto resumed = trainer(o);
+  resumed->load_checkpoint(ckpt);
+  const RestoreStepReport again = resumed->train_step();
+  EXPECT_EQ(again.loss, last.loss);
+  EXPECT_EQ(again.consistency, last.consistency);
+  EXPECT_EQ(weights(*resumed), weights(*straight));
+  // A checkpoint of the internalizing run is refused.
+  RestoreTrainOptions plain = tiny();
+  plain.correlate_high_order = false;
+  auto other = trainer(plain);
+  test::expect_invalid_argument([&] { other->load_checkpoint(ckpt); }, "train.explicit_weight");
+}
+
+// redegrade is Simulator::frame for the frame's own maps, forward and
+// backward, and its gradient matches central differences.
+TEST(Redegrade, IsTheSimulatorsFrameAndItsBackward) {
+  Device& dev = test::device();
+  constexpr int kSide = 24;
+  const sim::Params p = probe_sim_params(5.0, kSide);
+  sim::Simulator simulator(dev, p, sim::load_shipped_blur_models(dev), probe_sim_options());
+  const Shape shape{1, 3, kSide, kSide};
+  const std::vector<float> xs = test::random_floats(std::size_t(shape.numel()), 3, 0, 1);
+  const std::vector<float> w = test::random_floats(std::size_t(shape.numel()), 4);
+  const Tensor x = Tensor::from(dev, shape, xs), y = Tensor::empty(dev, shape);
+  const Tensor dy = Tensor::from(dev, shape, w), dx = Tensor::empty(dev, shape);
+  simulator.reset(9);
+  Stream stream(dev);
+  simulator.frame(stream, x, y);
+  simulator.frame(stream, x, y);  // frame 1: the AR(1) successor
+  simulator.frame_backward(stream, dy, dx);
+  stream.run();
+  const Tensor& basis = simulator.blur_model(0)->basis();
+  const Tensor flow = simulator.flow(), beta = simulator.beta();
+
+  nets::Tape tape(stream);
+  const nets::Var xv(x, true);
+  const nets::Var out = redegrade(tape, xv, flow, beta, basis);
+  tape.backward(nets::sum_all(tape, nets::mul(tape, out, nets::Var(dy))));
+  stream.run();
+  const auto want = y.download(), got = out.value().download();
+  const auto want_dx = dx.download(), got_dx = xv.grad().download();
+  for (std::size_t i = 0; i < want.size(); ++i) {
+    ASSERT_NEAR(got[i], want[i], 1e-5) << "y[" << i << "]";
+    ASSERT_NEAR(got_dx[i], want_dx[i], 1e-5 * (1 + std::fabs(want_dx[i]))) << "dx[" << i << "]";
+  }
+  const auto forward = [&](std::span<const float> v) {
+    Stream s(dev);
+    nets::Tape inference(s, false);
+    const nets::Var o =
+        redegrade(inference, nets::Var(Tensor::from(dev, shape, v)), flow, beta, basis);
+    s.run();
+    return test::weighted_sum(o.value().download(), w);
+  };
+  test::expect_gradient_matches(forward, xs, got_dx, "redegrade d/x");
+
+  test::expect_invalid_argument(
+      [&] {
+        nets::Tape t(stream);
+        (void)redegrade(t, xv, beta, beta, basis);
+      },
+      "flow");
+}
+
 TEST(RestoreTrainer, RefusesACheckpointOfOtherSettings) {
   test::TempDir dir;
   const auto ckpt = dir.path / "run.ckpt";
@@ -112,6 +197,9 @@ TEST(RestoreTrainer, BadOptionsAndImagesAreClearErrors) {
       [&] { with([](RestoreTrainOptions& o) { o.lr = NAN; }).validate(); }, "--lr");
   test::expect_invalid_argument(
       [&] { with([](RestoreTrainOptions& o) { o.d_over_r0_lo = 0; }).validate(); }, "D/r0");
+  test::expect_invalid_argument(
+      [&] { with([](RestoreTrainOptions& o) { o.explicit_weight = -1; }).validate(); },
+      "--explicit");
   const auto blur = sim::load_shipped_blur_models(dev);
   std::vector<TrainImage> small = {{"tiny.png", {{8, 8, 3}, std::vector<float>(192, 1.f)}}};
   test::expect_invalid_argument([&] { RestoreTrainer(dev, tiny(), small, images(1, 2), blur); },
