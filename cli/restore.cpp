@@ -1,5 +1,6 @@
 // vkjr2 restore: the restorer (jr2/restorer.hpp) over a turbulent clip, a
 // video, or a folder of them.
+#include <vkjr2/jr2/faces.hpp>
 #include <vkjr2/jr2/restorer.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
@@ -8,8 +9,10 @@
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <map>
 #include <memory>
 #include <optional>
 #include <string>
@@ -32,7 +35,51 @@ struct RestoreArgs {
   std::string input, output, model, device;
   int max_frames = 0;
   std::optional<int> frame;
+  bool faces = false;
+  double face_margin = 0.5;
+  int detector_size = 416;
+  float face_threshold = 0.5f;
   bool json_out = false, quiet = false, force = false, fail_fast = false;
+};
+
+// --faces: the faces of frame i are the detections in the T frames of its
+// window (the frame's own first, then the nearest frames': a face the
+// detector misses in one frame is kept from its neighbours).
+class FaceTracks {
+ public:
+  FaceTracks(const Device& device, const RestoreArgs& a) : analyzer_(device) {
+    options_.input_size = a.detector_size;
+    options_.score_threshold = a.face_threshold;
+    options_.descriptors = false;
+  }
+  std::vector<nets::FaceBox> boxes(Stream& stream, const std::vector<std::vector<float>>& planes,
+                                   std::int64_t h, std::int64_t w,
+                                   const std::vector<std::size_t>& window, std::size_t i) {
+    std::vector<std::size_t> order(window.begin(), window.end());
+    std::stable_sort(order.begin(), order.end(), [&](std::size_t p, std::size_t q) {
+      const auto dp = p > i ? p - i : i - p, dq = q > i ? q - i : i - q;
+      return dp < dq;
+    });
+    std::vector<nets::FaceBox> out;
+    for (std::size_t f : order) {
+      auto it = cache_.find(f);
+      if (it == cache_.end()) {
+        std::vector<float> pixels(planes[f]);
+        for (float& v : pixels) v *= 255.f;
+        const Tensor image = Tensor::from(stream.device(), Shape{1, 3, h, w}, pixels);
+        std::vector<nets::FaceBox> found;
+        for (const auto& d : analyzer_.detect(stream, image, options_)) found.push_back(d.box);
+        it = cache_.emplace(f, std::move(found)).first;
+      }
+      out.insert(out.end(), it->second.begin(), it->second.end());
+    }
+    return out;
+  }
+
+ private:
+  jr2::FaceAnalyzer analyzer_;
+  jr2::FaceOptions options_;
+  std::map<std::size_t, std::vector<nets::FaceBox>> cache_;
 };
 
 json restore_one(const Device& device, const jr2::Restorer& net, const RestoreArgs& a,
@@ -82,18 +129,58 @@ json restore_one(const Device& device, const jr2::Restorer& net, const RestoreAr
   std::vector<float> stacked(plane * std::size_t(t_frames));
   const Tensor x = Tensor::empty(device, Shape{1, 3LL * t_frames, h, w});
   Progress progress("restore " + in.filename().string(), targets.size(), a.quiet);
-  std::size_t done = 0;
+  std::size_t done = 0, regions = 0, frames_with_faces = 0;
+  std::unique_ptr<FaceTracks> tracks;
+  if (a.faces) tracks = std::make_unique<FaceTracks>(device, a);
+  const int multiple = 1 << net.config().levels();
   for (const std::size_t i : targets) {
     const auto window = jr2::restore_window(count, i, t_frames);
-    for (std::size_t j = 0; j < window.size(); ++j) {
-      std::copy(planes[window[j]].begin(), planes[window[j]].end(),
-                stacked.begin() + std::ptrdiff_t(j * plane));
+    std::vector<float> restored;
+    if (tracks) {
+      // Only the face regions, restored from the same crop of every frame of
+      // the window and blended into the frame.
+      restored = planes[i];
+      const auto boxes = tracks->boxes(stream, planes, h, w, window, i);
+      const auto found = jr2::face_regions(boxes, int(h), int(w), a.face_margin, multiple);
+      for (const jr2::Region& r : found) {
+        const std::size_t rp = std::size_t(3 * r.width * r.height);
+        std::vector<float> crop(rp * window.size());
+        for (std::size_t j = 0; j < window.size(); ++j) {
+          const std::vector<float>& src = planes[window[j]];
+          for (std::size_t c = 0; c < 3; ++c) {
+            for (int y = 0; y < r.height; ++y) {
+              const auto row = src.begin() + std::ptrdiff_t(c * std::size_t(h * w) +
+                                                            std::size_t(r.y + y) * std::size_t(w) +
+                                                            std::size_t(r.x));
+              std::copy(row, row + r.width,
+                        crop.begin() +
+                            std::ptrdiff_t(j * rp + (c * std::size_t(r.height) + std::size_t(y)) *
+                                                        std::size_t(r.width)));
+            }
+          }
+        }
+        nets::Tape tape(stream, false);
+        const nets::Var y = net.forward(
+            tape,
+            nets::Var(Tensor::from(device, Shape{1, 3LL * t_frames, r.height, r.width}, crop)));
+        stream.run();
+        jr2::paste_region(restored, int(h), int(w), y.value().download(), r,
+                          std::max(2, std::min(r.width, r.height) / 8));
+      }
+      regions += found.size();
+      frames_with_faces += found.empty() ? 0 : 1;
+    } else {
+      for (std::size_t j = 0; j < window.size(); ++j) {
+        std::copy(planes[window[j]].begin(), planes[window[j]].end(),
+                  stacked.begin() + std::ptrdiff_t(j * plane));
+      }
+      x.upload(stacked);
+      nets::Tape tape(stream, false);
+      const nets::Var y = net.forward(tape, nets::Var(x));
+      stream.run();
+      restored = y.value().download();
     }
-    x.upload(stacked);
-    nets::Tape tape(stream, false);
-    const nets::Var y = net.forward(tape, nets::Var(x));
-    stream.run();
-    const Image frame = planes_to_image(y.value().download(), 3, h, w, 3, 255.f);
+    const Image frame = planes_to_image(restored, 3, h, w, 3, 255.f);
     if (writer) {
       writer->write(frame);
     } else {
@@ -105,10 +192,15 @@ json restore_one(const Device& device, const jr2::Restorer& net, const RestoreAr
   progress.done();
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  return {{"input", in.string()}, {"output", out.string()},
-          {"frames_read", count}, {"restored", done},
-          {"height", h},          {"width", w},
-          {"seconds", seconds},   {"fps", double(done) / seconds}};
+  json r = {{"input", in.string()}, {"output", out.string()},
+            {"frames_read", count}, {"restored", done},
+            {"height", h},          {"width", w},
+            {"seconds", seconds},   {"fps", double(done) / seconds}};
+  if (a.faces) {
+    r["face_regions"] = regions;
+    r["frames_with_faces"] = frames_with_faces;
+  }
+  return r;
 }
 
 void check_job(const RestoreArgs& a, const fs::path& in, const fs::path& out) {
@@ -129,6 +221,11 @@ void run_restore(const RestoreArgs& a) {
   std::error_code ec;
   const bool folder = fs::is_directory(in, ec);
   if (!folder) check_input_file(in, "IN");
+  if (a.faces && a.detector_size % 32 != 0) {
+    throw UsageError("--detector-size",
+                     std::to_string(a.detector_size) + " is not a multiple of 32",
+                     "use 160, 320, 416, 512 or 608");
+  }
   const fs::path model = a.model.empty() ? jr2::default_restorer_path() : fs::path(a.model);
   check_input_file(model, a.model.empty() ? "the shipped restorer" : "--model");
   std::vector<std::pair<fs::path, fs::path>> jobs;
@@ -189,10 +286,15 @@ void add_restore(CLI::App& app) {
       "restored frame\n"
       "(--frame, default the middle one); a video OUT restores every frame. A folder IN writes "
       "OUT/<clip>.png\n"
-      "per video. Outputs are written atomically.\n"
+      "per video. --faces restores only the regions around the faces found in the frame's "
+      "window (a face the\n"
+      "detector misses in one frame is kept from its neighbours) and blends them back with a "
+      "feathered edge.\n"
+      "Outputs are written atomically.\n"
       "Examples:\n"
       "  vkjr2 restore probe.avi restored.png            # the middle frame\n"
       "  vkjr2 restore probe.avi restored.avi            # every frame\n"
+      "  vkjr2 restore street.mp4 faces.mp4 --faces      # only the faces, pasted back\n"
       "  vkjr2 restore bench/jr2/probes/ restored/ --model mine.safetensors");
   cmd->add_option("IN", a->input, "A clip (.avi, .mp4, ...), one frame, or a folder of clips")
       ->required();
@@ -207,6 +309,20 @@ void add_restore(CLI::App& app) {
       ->check(integer_range(0, 10000000));
   cmd->add_option("--frame", a->frame, "The frame an image OUT restores (default: the middle)")
       ->check(integer_range(0, 10000000));
+  cmd->add_flag("--faces", a->faces,
+                "Restore only the faces: the regions around the faces detected in each frame's "
+                "window, blended back into the frame (the rest stays as it is)");
+  cmd->add_option("--face-margin", a->face_margin,
+                  "--faces: context around a face box, as a share of its side on each side")
+      ->default_val(a->face_margin)
+      ->check(finite_range(0, 4));
+  cmd->add_option("--detector-size", a->detector_size,
+                  "--faces: the face detector's input size (a multiple of 32)")
+      ->default_val(a->detector_size)
+      ->check(integer_range(32, 1024));
+  cmd->add_option("--face-threshold", a->face_threshold, "--faces: the detector's score threshold")
+      ->default_val(a->face_threshold)
+      ->check(finite_range(0.01, 0.99));
   cmd->add_option("--device", a->device,
                   "Vulkan device index or name substring (else VKJR2_DEVICE)");
   cmd->add_flag("--json", a->json_out, "Print JSON instead of text");

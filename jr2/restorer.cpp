@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <charconv>
 #include <cmath>
+#include <numbers>
 #include <utility>
 
 #include "internal/text_and_draws.hpp"
@@ -471,6 +472,70 @@ Var Restorer::forward(Tape& t, const Var& frames) const {
   Var out = nets::add(t, x, reference);
   if (hp != s[2] || wp != s[3]) out = nets::slice(t, out, {0, 0, 0}, Shape{s[0], 3, s[2], s[3]});
   return out;
+}
+
+std::vector<Region> face_regions(std::span<const nets::FaceBox> boxes, int height, int width,
+                                 double margin, int multiple) {
+  if (height < 1 || width < 1 || multiple < 1 || !(margin >= 0)) {
+    throw InvalidArgument("jr2::face_regions",
+                          "image " + std::to_string(width) + "×" + std::to_string(height) +
+                              ", multiple " + std::to_string(multiple),
+                          "pass a non-empty image, a multiple ≥ 1 and a margin ≥ 0");
+  }
+  std::vector<Region> out;
+  for (const nets::FaceBox& b : boxes) {
+    if (!(b.width > 0 && b.height > 0) || !std::isfinite(b.x) || !std::isfinite(b.y)) continue;
+    const double side = std::max(b.width, b.height) * (1 + 2 * margin);
+    const double cx = b.x + b.width / 2, cy = b.y + b.height / 2;
+    int s = int(std::ceil(side / multiple)) * multiple;
+    const int sw = std::min(s, width), sh = std::min(s, height);
+    Region r;
+    r.width = sw;
+    r.height = sh;
+    r.x = std::clamp(int(std::lround(cx - sw / 2.0)), 0, width - sw);
+    r.y = std::clamp(int(std::lround(cy - sh / 2.0)), 0, height - sh);
+    const nets::FaceBox rb{double(r.x), double(r.y), double(r.width), double(r.height)};
+    const bool seen = std::any_of(out.begin(), out.end(), [&](const Region& o) {
+      return nets::box_iou(rb, {double(o.x), double(o.y), double(o.width), double(o.height)}) >=
+             0.3;
+    });
+    if (!seen) out.push_back(r);
+  }
+  return out;
+}
+
+void paste_region(std::span<float> frame, int height, int width, std::span<const float> patch,
+                  const Region& r, int feather) {
+  const std::size_t hw = std::size_t(height) * std::size_t(width);
+  const std::size_t rhw = std::size_t(r.height) * std::size_t(r.width);
+  if (r.x < 0 || r.y < 0 || r.width < 1 || r.height < 1 || r.x + r.width > width ||
+      r.y + r.height > height || frame.size() != 3 * hw || patch.size() != 3 * rhw || feather < 0) {
+    throw InvalidArgument("jr2::paste_region", "the region or the buffers do not fit the frame",
+                          "pass a region inside the frame and a [3, h, w] patch");
+  }
+  // Weight along one axis: 1 inside, a raised cosine over `feather` pixels
+  // at an edge that is not the image's.
+  auto ramp = [&](int i, int n, bool lo_free, bool hi_free) {
+    double w = 1;
+    const double f = std::min(feather, n / 2);
+    if (f <= 0) return w;
+    if (lo_free && i < f) w = std::min(w, 0.5 - 0.5 * std::cos(std::numbers::pi * (i + 0.5) / f));
+    if (hi_free && n - 1 - i < f)
+      w = std::min(w, 0.5 - 0.5 * std::cos(std::numbers::pi * (n - i - 0.5) / f));
+    return w;
+  };
+  for (int y = 0; y < r.height; ++y) {
+    const double wy = ramp(y, r.height, r.y > 0, r.y + r.height < height);
+    for (int x = 0; x < r.width; ++x) {
+      const double w = wy * ramp(x, r.width, r.x > 0, r.x + r.width < width);
+      for (std::size_t c = 0; c < 3; ++c) {
+        float& dst =
+            frame[c * hw + std::size_t(r.y + y) * std::size_t(width) + std::size_t(r.x + x)];
+        const float src = patch[c * rhw + std::size_t(y) * std::size_t(r.width) + std::size_t(x)];
+        dst = float((1 - w) * double(dst) + w * double(src));
+      }
+    }
+  }
 }
 
 }  // namespace vkjr2::jr2

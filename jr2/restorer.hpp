@@ -21,6 +21,7 @@
 #pragma once
 
 #include <vkjr2/nets/autograd.hpp>
+#include <vkjr2/nets/face_box.hpp>
 #include <vkjr2/nets/layers.hpp>
 
 #include <cstdint>
@@ -128,5 +129,28 @@ struct ClassicalOptions {
 };
 Tensor classical_restore(Stream& stream, std::span<const Tensor> frames,
                          const ClassicalOptions& options = {});
+
+// ---- restoring the faces of a full frame ------------------------------------
+
+// A region of a frame in pixels (top-left corner, size).
+struct Region {
+  int x = 0, y = 0, width = 0, height = 0;
+  bool operator==(const Region&) const = default;
+};
+
+// The regions of a frame to restore for these face boxes (image pixels,
+// strongest first): each box grown by `margin` × its larger side on every
+// side (context for the restorer), made square, rounded up to a multiple of
+// `multiple` (the restorer's 2^levels) and moved inside the image, shrunk
+// to it only when larger. A box whose region overlaps an earlier region
+// (IoU ≥ 0.3: the same face seen in another frame) adds none.
+std::vector<Region> face_regions(std::span<const nets::FaceBox> boxes, int height, int width,
+                                 double margin = 0.5, int multiple = 8);
+
+// Blends patch [3, r.height, r.width] into frame [3, height, width] (planes)
+// at r: weight 1 inside, falling to 0 along a raised-cosine ramp `feather`
+// pixels wide at the region's edges, except where an edge is the image's.
+void paste_region(std::span<float> frame, int height, int width, std::span<const float> patch,
+                  const Region& r, int feather);
 
 }  // namespace vkjr2::jr2

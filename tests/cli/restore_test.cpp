@@ -4,6 +4,7 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
 
 #include <filesystem>
 #include <fstream>
@@ -125,6 +126,33 @@ TEST(CliRestore, TrainsResumesAndRestores) {
     EXPECT_GT(row["psnr_db"]["value"].get<double>(), 10.0) << row.dump();
   }
   EXPECT_EQ(methods, (std::vector<std::string>{"degraded", "classical", "restored:r"}));
+
+  // --faces on a probe clip: the face region is restored and blended in, the
+  // rest of the frame is the input's own.
+  fs::path probe;
+  for (const auto& e : fs::recursive_directory_iterator(bench / "probes")) {
+    if (e.path().extension() == ".avi") probe = e.path();
+  }
+  ASSERT_FALSE(probe.empty());
+  const fs::path faces = tmp.path / "faces.png";
+  r = run_cli("restore " + probe.string() + " " + faces.string() + " --model " + model.string() +
+              " --faces --face-margin 0 --frame 0 --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  j = parse_json(r.output)["results"][0];
+  EXPECT_GE(j["face_regions"].get<int>(), 1) << r.output;
+  cv::VideoCapture cap(probe.string());
+  cv::Mat first;
+  ASSERT_TRUE(cap.read(first));
+  const cv::Mat pasted = cv::imread(faces.string());
+  ASSERT_EQ(pasted.size(), first.size());
+  EXPECT_EQ(pasted.at<cv::Vec3b>(0, 0), first.at<cv::Vec3b>(0, 0));
+  EXPECT_EQ(pasted.at<cv::Vec3b>(first.rows - 1, first.cols - 1),
+            first.at<cv::Vec3b>(first.rows - 1, first.cols - 1));
+  EXPECT_GT(cv::norm(pasted, first, cv::NORM_L1), 0.0);
+  r = run_cli("restore " + probe.string() + " " + faces.string() +
+              " --faces --detector-size 100 --force");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("multiple of 32"), std::string::npos) << r.output;
 }
 
 TEST(CliRestore, BadInputsAreClearErrors) {

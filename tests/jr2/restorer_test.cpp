@@ -130,5 +130,50 @@ TEST(Restorer, SavesLoadsAndRestoresAnySize) {
   test::expect_invalid_argument([&] { (void)Restorer::load(dev, other); }, "o.safetensors");
 }
 
+// Face regions: square, a multiple of the restorer's step, inside the image;
+// the same face from another frame adds none.
+TEST(FaceRegions, SquareAlignedInsideAndOncePerFace) {
+  using nets::FaceBox;
+  const std::vector<FaceBox> boxes = {{50, 40, 20, 30},  // the face
+                                      {52, 42, 20, 28},  // it again, a frame later
+                                      {2, 90, 10, 10},   // another, at the border
+                                      {0, 0, 0, 10}};    // empty: skipped
+  const auto r = face_regions(boxes, 100, 120, 0.5, 8);
+  ASSERT_EQ(r.size(), 2u);
+  EXPECT_EQ(r[0].width, 64);  // 30 × 2 = 60 → 64
+  EXPECT_EQ(r[0].height, 64);
+  EXPECT_EQ(r[0].x, 60 - 32);
+  EXPECT_EQ(r[0].y, 55 - 32);
+  EXPECT_EQ(r[1], (Region{0, 100 - 24, 24, 24}));         // 20 → 24, moved inside
+  const std::vector<FaceBox> wide = {{10, 10, 400, 10}};  // wider than the image
+  EXPECT_EQ(face_regions(wide, 100, 120, 0.5, 8), (std::vector<Region>{{0, 0, 120, 100}}));
+  test::expect_invalid_argument([&] { (void)face_regions(boxes, 0, 10); }, "face_regions");
+}
+
+// Pasting: the patch inside, the frame outside, a ramp between, and no ramp
+// along the image's own edges.
+TEST(FaceRegions, PasteBlendsWithAFeatheredEdge) {
+  const int h = 20, w = 30;
+  std::vector<float> frame(3 * h * w, 0.f);
+  const Region r{0, 4, 16, 12};
+  const std::vector<float> patch(3 * 16 * 12, 1.f);
+  paste_region(frame, h, w, patch, r, 4);
+  auto at = [&](int c, int y, int x) { return frame[std::size_t((c * h + y) * w + x)]; };
+  for (int c = 0; c < 3; ++c) {
+    EXPECT_EQ(at(c, 10, 8), 1.f);   // inside
+    EXPECT_EQ(at(c, 10, 0), 1.f);   // the image's left edge: not feathered
+    EXPECT_EQ(at(c, 2, 8), 0.f);    // above the region
+    EXPECT_EQ(at(c, 10, 20), 0.f);  // right of it
+    EXPECT_GT(at(c, 4, 8), 0.f);    // the top ramp
+    EXPECT_LT(at(c, 4, 8), at(c, 6, 8));
+    EXPECT_LT(at(c, 10, 15), 0.5f);  // the right ramp's last pixel
+  }
+  test::expect_invalid_argument(
+      [&] {
+        paste_region(frame, h, w, patch, Region{20, 4, 16, 12}, 4);
+      },
+      "paste_region");
+}
+
 }  // namespace
 }  // namespace vkjr2::jr2
