@@ -128,7 +128,27 @@ void conv2d_backward_weight(Stream& stream, const Tensor& x, const Tensor& dy,
   // p.algo == direct) one dw element per invocation.
   const bool blocked =
       p.algo != Conv2dAlgo::direct && why_not(Conv2dAlgo::blocked, stream.device(), d, p).empty();
-  if (blocked) {
+  // 1×1, stride 1, no padding, groups 1: dW = dY·Xᵀ over the pixels, which
+  // is the blocked kernel on x and dy read in place as one row of H·W pixels
+  // per plane (no padding passes) when H·W is whole 8-pixel blocks. With W a
+  // multiple of 8 the sums run in the padded path's order (same bits).
+  const bool flat = blocked && p.algo == Conv2dAlgo::auto_select && d.kh == 1 && d.kw == 1 &&
+                    p.stride_y == 1 && p.stride_x == 1 && p.pad.top == 0 && p.pad.left == 0 &&
+                    p.pad.bottom == 0 && p.pad.right == 0 && p.groups == 1 &&
+                    (std::uint64_t(d.h) * std::uint64_t(d.w)) % kPx == 0;
+  if (flat) {
+    ConvPush f = c;
+    f.h = f.hp = f.hout = 1;
+    f.w = f.wp = f.wout = std::uint32_t(d.h * d.w);
+    f.wblocks = f.wout / kPx;
+    f.pt = f.pl = 0;
+    stream.dispatch(
+        kBwdWeightBlocked,
+        {texel(x, VK_FORMAT_R32G32B32A32_SFLOAT), texel(dy, VK_FORMAT_R32G32B32A32_SFLOAT),
+         out(dweight)},
+        f, Groups{div_up(std::uint64_t(f.cin), kBlockedGroup), div_up(f.cout, kCoBlock), 1},
+        {1u, 1u, 1u});
+  } else if (blocked) {
     set_padded(c);
     const Tensor xp = pad_input(stream, x, c);
     ConvPush dc = c;  // dy [n, cout, hout, wout] → [n, cout, hout, wblocks·8]

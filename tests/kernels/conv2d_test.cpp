@@ -96,7 +96,7 @@ Case random_case(std::mt19937& rng) {
   }
 }
 
-// Hand-picked edges: pointwise with h·w not a multiple of 8, 1×1 images, TF
+// Hand-picked edges: pointwise with h·w a multiple of 8 or not, 1×1 images, TF
 // "same" stride 2 on even sizes, Cout not a multiple of the 8-channel block.
 std::vector<Case> edge_cases() {
   std::vector<Case> cases;
@@ -106,6 +106,10 @@ std::vector<Case> edge_cases() {
   c.d = {2, 3, 1, 1, 8, 1, 1};
   cases.push_back(c);
   c.d = {2, 5, 3, 4, 9, 1, 1};  // h·w = 12: vec4 reads, a last block of 4 pixels
+  cases.push_back(c);
+  c.d = {2, 6, 4, 8, 11, 1, 1};  // the weight gradient on flat planes, rows of whole blocks
+  cases.push_back(c);
+  c.d = {3, 7, 4, 6, 17, 1, 1};  // flat planes of 24 pixels, rows of 6
   cases.push_back(c);
   c.d = {1, 8, 1, 1, 16, 3, 3};
   c.p.pad = {1, 1, 1, 1};
