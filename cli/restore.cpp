@@ -143,7 +143,7 @@ json restore_one(const Device& device, const jr2::Restorer& net, const RestoreAr
       const auto boxes = tracks->boxes(stream, planes, h, w, window, i);
       const auto found = jr2::face_regions(boxes, int(h), int(w), a.face_margin, multiple);
       for (const jr2::Region& r : found) {
-        const std::size_t rp = std::size_t(3 * r.width * r.height);
+        const std::size_t rp = 3 * std::size_t(r.width) * std::size_t(r.height);
         std::vector<float> crop(rp * window.size());
         for (std::size_t j = 0; j < window.size(); ++j) {
           const std::vector<float>& src = planes[window[j]];

@@ -158,7 +158,7 @@ TEST(FaceRegions, PasteBlendsWithAFeatheredEdge) {
   const Region r{0, 4, 16, 12};
   const std::vector<float> patch(3 * 16 * 12, 1.f);
   paste_region(frame, h, w, patch, r, 4);
-  auto at = [&](int c, int y, int x) { return frame[std::size_t((c * h + y) * w + x)]; };
+  auto at = [&](int c, int y, int x) { return frame[(std::size_t(c) * h + y) * w + x]; };
   for (int c = 0; c < 3; ++c) {
     EXPECT_EQ(at(c, 10, 8), 1.f);   // inside
     EXPECT_EQ(at(c, 10, 0), 1.f);   // the image's left edge: not feathered
