@@ -7,6 +7,8 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -55,6 +57,22 @@ std::vector<std::vector<float>> weights(const RestoreTrainer& t) {
   return out;
 }
 
+// A run stopped after two steps (its checkpoint at ckpt) and a new trainer
+// resumed from it.
+std::unique_ptr<RestoreTrainer> resumed_after_two(const RestoreTrainOptions& o,
+                                                  const std::filesystem::path& ckpt) {
+  {
+    auto first = trainer(o);
+    first->train_step();
+    first->train_step();
+    first->save_checkpoint(ckpt);
+  }
+  auto resumed = trainer(o);
+  resumed->load_checkpoint(ckpt);
+  EXPECT_EQ(resumed->step(), 2);
+  return resumed;
+}
+
 TEST(RestoreTrainer, ResumesFromACheckpointBitExactly) {
   const RestoreTrainOptions o = tiny();
   auto straight = trainer(o);
@@ -68,15 +86,7 @@ TEST(RestoreTrainer, ResumesFromACheckpointBitExactly) {
 
   test::TempDir dir;
   const auto ckpt = dir.path / "run.ckpt";
-  {
-    auto first = trainer(o);
-    first->train_step();
-    first->train_step();
-    first->save_checkpoint(ckpt);
-  }
-  auto resumed = trainer(o);
-  resumed->load_checkpoint(ckpt);
-  EXPECT_EQ(resumed->step(), 2);
+  auto resumed = resumed_after_two(o, ckpt);
   const RestoreStepReport last = resumed->train_step();
   EXPECT_EQ(last.loss, reports.back().loss);
   EXPECT_EQ(last.lr, reports.back().lr);
@@ -103,14 +113,7 @@ TEST(RestoreTrainer, ExplicitTrainingResumesBitExactly) {
   EXPECT_GT(last.loss, last.consistency * 0.5);  // the total holds the weighted term
   test::TempDir dir;
   const auto ckpt = dir.path / "run.ckpt";
-  {
-    auto first = trainer(o);
-    first->train_step();
-    first->train_step();
-    first->save_checkpoint(ckpt);
-  }
-  auto resumed = trainer(o);
-  resumed->load_checkpoint(ckpt);
+  auto resumed = resumed_after_two(o, ckpt);
   const RestoreStepReport again = resumed->train_step();
   EXPECT_EQ(again.loss, last.loss);
   EXPECT_EQ(again.consistency, last.consistency);
