@@ -91,11 +91,14 @@ void add_wave_clips(CLI::App& app) {
       "holds them out: no restorer trained with the same --images and --val-every saw them), "
       "imaged --frames\n"
       "times through the split-step wave-optics reference, each frame through its own "
-      "independent screens,\n"
+      "independent screens\n"
+      "(or, with --screen-motion, through the clip's screens moving between frames: frozen "
+      "flow),\n"
       "at D/r0 spaced log-uniformly over --d-over-r0. Slow by design (seconds per frame); the "
       "file is the cache.\n"
       "Examples:\n"
       "  vkjr2 wave-clips out/wave_clips.safetensors\n"
+      "  vkjr2 wave-clips out/wave_flow.safetensors --screen-motion 0.04\n"
       "  vkjr2 restore-score out/wave_clips.safetensors --model "
       "artifacts/restorer_default.safetensors");
   cmd->add_option("OUT", a->output, "Output clip set (.safetensors)")->required();
@@ -117,6 +120,11 @@ void add_wave_clips(CLI::App& app) {
       ->expected(2)
       ->default_str("1 8")
       ->check(finite_range(0.05, 20));
+  cmd->add_option("--screen-motion", a->o.screen_motion_m,
+                  "Frozen flow: metres the screens move per frame, in a direction drawn per clip "
+                  "(0.04: tilt correlation ≈ 0.9 between frames); 0: independent screens per frame")
+      ->default_val(a->o.screen_motion_m)
+      ->check(finite_range(0, 10));
   cmd->add_option("--grid", a->o.wave.wave.grid, "Propagation grid N (an FFT length)")
       ->default_val(a->o.wave.wave.grid);
   cmd->add_option("--screens", a->o.wave.wave.screens, "Phase screens (at least)")

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <numbers>
 #include <numeric>
 
 #include "internal/text_and_draws.hpp"
@@ -41,6 +42,9 @@ void WaveClipOptions::validate() const {
   require(d_over_r0_lo > 0 && d_over_r0_hi >= d_over_r0_lo && d_over_r0_hi <= 20,
           "D/r0 range [" + num(d_over_r0_lo) + ", " + num(d_over_r0_hi) + "]",
           "use 0 < lo <= hi <= 20");
+  require(std::isfinite(screen_motion_m) && screen_motion_m >= 0 && screen_motion_m <= 10,
+          "--screen-motion " + num(screen_motion_m),
+          "use 0..10 metres per frame (0.04 = a fifth of the aperture; 0: independent frames)");
 }
 
 ClipSet make_wave_clips(const Device& device, const std::vector<TrainImage>& images,
@@ -68,10 +72,20 @@ ClipSet make_wave_clips(const Device& device, const std::vector<TrainImage>& ima
     const double u = o.clips > 1 ? double(i) / double(o.clips - 1) : 0.5;
     const double d = o.d_over_r0_lo * std::pow(o.d_over_r0_hi / o.d_over_r0_lo, u);
     const sim::Params p = probe_sim_params(d, o.size);
+    const std::uint64_t clip_seed =
+        detail::splitmix_finalize(o.seed * detail::kGoldenGamma + std::uint64_t(i) * 1000003ULL);
+    const double direction =
+        2 * std::numbers::pi * detail::unit_interval(detail::splitmix_finalize(clip_seed + 1));
     for (int t = 0; t < o.frames; ++t) {
       sim::WaveImageConfig config = o.wave;
-      config.wave.seed = detail::splitmix_finalize(
-          o.seed * detail::kGoldenGamma + std::uint64_t(i) * 1000003ULL + std::uint64_t(t) + 1);
+      if (o.screen_motion_m > 0) {
+        config.wave.seed = clip_seed;
+        config.wave.screen_offset_m = {t * o.screen_motion_m * std::cos(direction),
+                                       t * o.screen_motion_m * std::sin(direction)};
+      } else {
+        config.wave.seed = detail::splitmix_finalize(
+            o.seed * detail::kGoldenGamma + std::uint64_t(i) * 1000003ULL + std::uint64_t(t) + 1);
+      }
       const std::vector<float> y = sim::wave_image(device, p, config, clean);
       float* dst = set.degraded.data() +
                    (std::size_t(i) * std::size_t(o.frames) + std::size_t(t)) * frame_size;
@@ -87,6 +101,7 @@ ClipSet make_wave_clips(const Device& device, const std::vector<TrainImage>& ima
                   {"size", std::to_string(o.size)},
                   {"d_over_r0", num(o.d_over_r0_lo) + "," + num(o.d_over_r0_hi)},
                   {"seed", std::to_string(o.seed)},
+                  {"screen_motion_m", num(o.screen_motion_m)},
                   {"wave.grid", std::to_string(o.wave.wave.grid)},
                   {"wave.screens", std::to_string(o.wave.wave.screens)},
                   {"wave.source_step_px", num(o.wave.source_step_px)}};

@@ -36,6 +36,11 @@ struct WaveClipOptions {
   int clips = 12, frames = 8, size = 64;
   double d_over_r0_lo = 1, d_over_r0_hi = 8;  // clip i: log-spaced over the range
   std::uint64_t seed = 1;
+  // Frozen flow: > 0 images a clip's frames through one set of screens,
+  // displaced by this many metres per frame in a direction drawn per clip
+  // (0.04 = 0.2 D gives the presets' tilt correlation ≈ 0.9 between frames);
+  // 0: every frame through its own independent screens.
+  double screen_motion_m = 0;
   sim::WaveImageConfig wave;
   // Throws InvalidArgument naming the option and the fix.
   void validate() const;
@@ -44,7 +49,8 @@ struct WaveClipOptions {
 // Clip i: a centre crop (half the shorter side, at least S) of image
 // i mod images.size() resampled to S², imaged T times through the
 // wave-optics reference, each frame through its own independent screens
-// (seed from (seed, i, t)). The optics are RestoreTrainer's
+// (seed from (seed, i, t)) or, with screen_motion_m, through the clip's
+// screens moving between frames. The optics are RestoreTrainer's
 // (probe_sim_params). progress(done, total) counts frames.
 ClipSet make_wave_clips(const Device& device, const std::vector<TrainImage>& images,
                         const WaveClipOptions& options,

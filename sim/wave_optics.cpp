@@ -69,6 +69,12 @@ void validate(const WaveConfig& config) {
     throw InvalidArgument(kOp, "WaveConfig inner scale must be ≥ 0 and outer scale > 0",
                           "use 0 and infinity for pure Kolmogorov turbulence");
   }
+  for (const double o : config.screen_offset_m) {
+    if (!std::isfinite(o) || std::abs(o) > 100) {
+      throw InvalidArgument(kOp, "WaveConfig::screen_offset_m must be finite and within ±100 m",
+                            "give the screens' displacement in metres, e.g. 0.02 per frame");
+    }
+  }
 }
 
 // Each slab's spherical-weighted integral ∫ Cn² (z/L)^(5/3) dz and Rytov share.
@@ -290,14 +296,17 @@ std::vector<float> propagate(const Device& device, const Params& params, const W
   }
   const ScreenParts parts = phase_screen_parts(device, ScreenGrid{m, dx, config.subharmonic_levels},
                                                layers, config.seed, config.fft);
-  // Per screen and source: the shear θ L (L − z)/z of the screen, in pixels.
+  // Per screen and source: the shear θ L (L − z)/z of the screen, plus the
+  // frozen-flow offset scaled into the ξ frame (× L/z), in pixels.
   std::vector<float> shifts(screens * batch * 2);
   double max_shift_px = 0;
   for (std::size_t i = 0; i < screens; ++i) {
     const double z = plan.z_m[i];
     for (std::size_t b = 0; b < batch; ++b) {
       for (int axis = 0; axis < 2; ++axis) {
-        const double px = angles_rad[b][axis] * length * (length - z) / z / dx;
+        const double px = (angles_rad[b][axis] * length * (length - z) / z +
+                           config.screen_offset_m[std::size_t(axis)] * length / z) /
+                          dx;
         shifts[(i * batch + b) * 2 + axis] = static_cast<float>(px);
         max_shift_px = std::max(max_shift_px, std::abs(px));
       }

@@ -51,6 +51,10 @@ struct WaveConfig {
   // biasing the coherence high (docs/sim.md, "Wave optics").
   bool absorber = false;
   std::uint64_t seed = 1;
+  // Frozen flow: every screen displaced by (x, y) metres in its own plane
+  // (a transverse wind × the time since the screens were drawn); frames of a
+  // video keep the seed and step this. {0, 0}: the screens as drawn.
+  std::array<double, 2> screen_offset_m = {0.0, 0.0};
   // Where the FFTs (screens, split steps, pupil → PSF) run. FftBackend::fftw
   // runs the whole reference on the CPU (FFTW, one thread; the screen and
   // propagator products on the host too) and never touches the Device; the

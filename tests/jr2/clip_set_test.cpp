@@ -97,6 +97,30 @@ TEST(ClipSet, WaveClipsRoundTripAndScore) {
   }
 }
 
+// Frozen flow: a clip's frames share its screens, so a vanishing motion
+// gives the same frame again, a real one another frame.
+TEST(ClipSet, FrozenFlowFramesShareTheClipsScreens) {
+  Device& dev = test::device();
+  WaveClipOptions o = tiny();
+  o.clips = 1;
+  o.screen_motion_m = 1e-7;
+  const ClipSet still = make_wave_clips(dev, images(), o);
+  o.screen_motion_m = 0.04;
+  const ClipSet moving = make_wave_clips(dev, images(), o);
+  const std::size_t f = 3 * 24 * 24;
+  double still_diff = 0, moving_diff = 0;
+  for (std::size_t k = 0; k < f; ++k) {
+    still_diff = std::max(still_diff, double(std::fabs(still.degraded[k] - still.degraded[f + k])));
+    moving_diff += std::fabs(moving.degraded[k] - moving.degraded[f + k]);
+    ASSERT_EQ(still.degraded[k], moving.degraded[k]) << k;  // frame 0: the screens as drawn
+  }
+  EXPECT_LT(still_diff, 1e-3);
+  EXPECT_GT(moving_diff / double(f), 1e-3);
+  EXPECT_EQ(moving.metadata.at("screen_motion_m"), "0.04");
+  o.screen_motion_m = -1;
+  test::expect_invalid_argument([&] { o.validate(); }, "--screen-motion");
+}
+
 TEST(ClipSet, BadFilesAndOptionsAreClearErrors) {
   Device& dev = test::device();
   test::TempDir dir;
