@@ -2,6 +2,7 @@
 // video, or a folder of them.
 #include <vkjr2/jr2/faces.hpp>
 #include <vkjr2/jr2/restorer.hpp>
+#include <vkjr2/kernels/layout.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/image.hpp>
@@ -135,6 +136,11 @@ json restore_one(const Device& device, const jr2::Restorer& net, const RestoreAr
   const int multiple = 1 << net.config().levels();
   for (const std::size_t i : targets) {
     const auto window = jr2::restore_window(count, i, t_frames);
+    for (std::size_t j = 0; j < window.size(); ++j) {
+      std::copy(planes[window[j]].begin(), planes[window[j]].end(),
+                stacked.begin() + std::ptrdiff_t(j * plane));
+    }
+    x.upload(stacked);
     std::vector<float> restored;
     if (tracks) {
       // Only the face regions, restored from the same crop of every frame of
@@ -143,26 +149,10 @@ json restore_one(const Device& device, const jr2::Restorer& net, const RestoreAr
       const auto boxes = tracks->boxes(stream, planes, h, w, window, i);
       const auto found = jr2::face_regions(boxes, int(h), int(w), a.face_margin, multiple);
       for (const jr2::Region& r : found) {
-        const std::size_t rp = 3 * std::size_t(r.width) * std::size_t(r.height);
-        std::vector<float> crop(rp * window.size());
-        for (std::size_t j = 0; j < window.size(); ++j) {
-          const std::vector<float>& src = planes[window[j]];
-          for (std::size_t c = 0; c < 3; ++c) {
-            for (int y = 0; y < r.height; ++y) {
-              const auto row = src.begin() + std::ptrdiff_t(c * std::size_t(h * w) +
-                                                            std::size_t(r.y + y) * std::size_t(w) +
-                                                            std::size_t(r.x));
-              std::copy(row, row + r.width,
-                        crop.begin() +
-                            std::ptrdiff_t(j * rp + (c * std::size_t(r.height) + std::size_t(y)) *
-                                                        std::size_t(r.width)));
-            }
-          }
-        }
+        const Tensor crop = Tensor::empty(device, Shape{1, 3LL * t_frames, r.height, r.width});
+        kernels::slice(stream, x, {.row = r.y, .col = r.x}, crop);
         nets::Tape tape(stream, false);
-        const nets::Var y = net.forward(
-            tape,
-            nets::Var(Tensor::from(device, Shape{1, 3LL * t_frames, r.height, r.width}, crop)));
+        const nets::Var y = net.forward(tape, nets::Var(crop));
         stream.run();
         jr2::paste_region(restored, int(h), int(w), y.value().download(), r,
                           std::max(2, std::min(r.width, r.height) / 8));
@@ -170,11 +160,6 @@ json restore_one(const Device& device, const jr2::Restorer& net, const RestoreAr
       regions += found.size();
       frames_with_faces += found.empty() ? 0 : 1;
     } else {
-      for (std::size_t j = 0; j < window.size(); ++j) {
-        std::copy(planes[window[j]].begin(), planes[window[j]].end(),
-                  stacked.begin() + std::ptrdiff_t(j * plane));
-      }
-      x.upload(stacked);
       nets::Tape tape(stream, false);
       const nets::Var y = net.forward(tape, nets::Var(x));
       stream.run();
