@@ -26,6 +26,7 @@
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
+#include "sim_common.hpp"
 #include "train_images.hpp"
 
 namespace vkjr2::cli {
@@ -106,18 +107,12 @@ void run_restore_train(TrainArgs& a) {
   load_train_images("restore-train", a.images, a.val_every, a.video_frames, o.crop, train, val);
   const std::size_t n_train = train.size(), n_val = val.size();
   Device device = open_device(a.device);
-  std::vector<std::shared_ptr<const sim::BlurModel>> blur;
-  std::string blur_names;
-  if (a.blur_models.empty()) {
-    blur = sim::load_shipped_blur_models(device);
-    blur_names = "shipped";
-  } else {
-    for (const auto& path : a.blur_models) {
-      blur.push_back(sim::load_blur_model(device, path));
-      blur_names += (blur_names.empty() ? "" : ",") + fs::path(path).filename().string();
-    }
+  std::string blur_names = a.blur_models.empty() ? "shipped" : "";
+  for (const auto& path : a.blur_models) {
+    blur_names += (blur_names.empty() ? "" : ",") + fs::path(path).filename().string();
   }
-  jr2::RestoreTrainer trainer(device, o, std::move(train), std::move(val), std::move(blur));
+  jr2::RestoreTrainer trainer(device, o, std::move(train), std::move(val),
+                              load_blur_models(device, a.blur_models));
   const std::map<std::string, std::string> run_meta = {{"train.blur_models", blur_names}};
   if (a.resume) trainer.load_checkpoint(a.checkpoint);
   log_info("restore-train: " + std::to_string(n_train) + " training images, " +

@@ -150,6 +150,14 @@ sim::Params params_for_image(const PathArgs& a, int height, int width) {
   return p;
 }
 
+std::vector<std::shared_ptr<const sim::BlurModel>> load_blur_models(
+    const Device& device, const std::vector<std::string>& paths) {
+  if (paths.empty()) return sim::load_shipped_blur_models(device);
+  std::vector<std::shared_ptr<const sim::BlurModel>> models;
+  for (const auto& path : paths) models.push_back(sim::load_blur_model(device, path));
+  return models;
+}
+
 void check_blur_models(const PathArgs& a, const sim::Params& params,
                        const std::vector<std::shared_ptr<const sim::BlurModel>>& models) {
   const sim::Derived d = sim::derive(params);

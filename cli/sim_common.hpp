@@ -32,6 +32,10 @@ void add_path_options(CLI::App* cmd, PathArgs& a);
 sim::Params params_for_image(const PathArgs& a, int height, int width);
 // --preset/--config with --range, --cn2, --r0 and --wavelengths applied (image shape untouched).
 sim::Params params_from_args(const PathArgs& a);
+// --blur-model FILE...: the models at these paths, or the shipped ones
+// (sim::load_shipped_blur_models) when none is given.
+std::vector<std::shared_ptr<const sim::BlurModel>> load_blur_models(
+    const Device& device, const std::vector<std::string>& paths);
 // Throws Error (exit code 1: a model is missing, the options are fine), with
 // the command that makes one, when a channel has no blur model made for its
 // sampling (a --config with its own optics, another wavelength).

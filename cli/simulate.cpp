@@ -323,11 +323,7 @@ void run_simulate(const SimArgs& a) {
   const Device device = open_device(a.device);
   std::vector<std::shared_ptr<const sim::BlurModel>> blur;
   if (!a.no_blur) {
-    if (a.blur_models.empty()) {
-      blur = sim::load_shipped_blur_models(device);
-    } else {
-      for (const auto& path : a.blur_models) blur.push_back(sim::load_blur_model(device, path));
-    }
+    blur = load_blur_models(device, a.blur_models);
     check_blur_models(a.path, checked, blur);
   }
   // Images whose header gives their size: too large for this device is said
