@@ -72,8 +72,9 @@ ClipSet make_wave_clips(const Device& device, const std::vector<TrainImage>& ima
     const double u = o.clips > 1 ? double(i) / double(o.clips - 1) : 0.5;
     const double d = o.d_over_r0_lo * std::pow(o.d_over_r0_hi / o.d_over_r0_lo, u);
     const sim::Params p = probe_sim_params(d, o.size);
-    const std::uint64_t clip_seed =
-        detail::splitmix_finalize(o.seed * detail::kGoldenGamma + std::uint64_t(i) * 1000003ULL);
+    // The clip's screens (frozen flow) or frame t's own (seed state + t + 1).
+    const std::uint64_t state = o.seed * detail::kGoldenGamma + std::uint64_t(i) * 1000003ULL;
+    const std::uint64_t clip_seed = detail::splitmix_finalize(state);
     const double direction =
         2 * std::numbers::pi * detail::unit_interval(detail::splitmix_finalize(clip_seed + 1));
     for (int t = 0; t < o.frames; ++t) {
@@ -83,8 +84,7 @@ ClipSet make_wave_clips(const Device& device, const std::vector<TrainImage>& ima
         config.wave.screen_offset_m = {t * o.screen_motion_m * std::cos(direction),
                                        t * o.screen_motion_m * std::sin(direction)};
       } else {
-        config.wave.seed = detail::splitmix_finalize(
-            o.seed * detail::kGoldenGamma + std::uint64_t(i) * 1000003ULL + std::uint64_t(t) + 1);
+        config.wave.seed = detail::splitmix_finalize(state + std::uint64_t(t) + 1);
       }
       const std::vector<float> y = sim::wave_image(device, p, config, clean);
       float* dst = set.degraded.data() +

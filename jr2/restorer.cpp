@@ -482,22 +482,23 @@ std::vector<Region> face_regions(std::span<const nets::FaceBox> boxes, int heigh
                               ", multiple " + std::to_string(multiple),
                           "pass a non-empty image, a multiple ≥ 1 and a margin ≥ 0");
   }
+  const auto as_box = [](const Region& r) {
+    return nets::FaceBox{double(r.x), double(r.y), double(r.width), double(r.height)};
+  };
   std::vector<Region> out;
   for (const nets::FaceBox& b : boxes) {
     if (!(b.width > 0 && b.height > 0) || !std::isfinite(b.x) || !std::isfinite(b.y)) continue;
     const double side = std::max(b.width, b.height) * (1 + 2 * margin);
     const double cx = b.x + b.width / 2, cy = b.y + b.height / 2;
-    int s = int(std::ceil(side / multiple)) * multiple;
+    const int s = int(std::ceil(side / multiple)) * multiple;
     const int sw = std::min(s, width), sh = std::min(s, height);
     Region r;
     r.width = sw;
     r.height = sh;
     r.x = std::clamp(int(std::lround(cx - sw / 2.0)), 0, width - sw);
     r.y = std::clamp(int(std::lround(cy - sh / 2.0)), 0, height - sh);
-    const nets::FaceBox rb{double(r.x), double(r.y), double(r.width), double(r.height)};
     const bool seen = std::any_of(out.begin(), out.end(), [&](const Region& o) {
-      return nets::box_iou(rb, {double(o.x), double(o.y), double(o.width), double(o.height)}) >=
-             0.3;
+      return nets::box_iou(as_box(r), as_box(o)) >= 0.3;
     });
     if (!seen) out.push_back(r);
   }
@@ -524,10 +525,14 @@ void paste_region(std::span<float> frame, int height, int width, std::span<const
       w = std::min(w, 0.5 - 0.5 * std::cos(std::numbers::pi * (n - i - 0.5) / f));
     return w;
   };
+  std::vector<double> wx(std::size_t(r.width));
+  for (int x = 0; x < r.width; ++x) {
+    wx[std::size_t(x)] = ramp(x, r.width, r.x > 0, r.x + r.width < width);
+  }
   for (int y = 0; y < r.height; ++y) {
     const double wy = ramp(y, r.height, r.y > 0, r.y + r.height < height);
     for (int x = 0; x < r.width; ++x) {
-      const double w = wy * ramp(x, r.width, r.x > 0, r.x + r.width < width);
+      const double w = wy * wx[std::size_t(x)];
       for (std::size_t c = 0; c < 3; ++c) {
         float& dst =
             frame[c * hw + std::size_t(r.y + y) * std::size_t(width) + std::size_t(r.x + x)];
