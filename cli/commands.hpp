@@ -18,9 +18,9 @@ void add_wave(CLI::App& app);           // wave.cpp
 void add_bench(CLI::App& app);          // bench.cpp: runs bench/'s programs
 void add_sim_validate(CLI::App& app);   // sim_validate.cpp
 void add_dataset(CLI::App& app);        // dataset.cpp: dataset make, dataset merge
-void add_demo(CLI::App& app);
-void add_eval(CLI::App& app);  // eval.cpp: the JR² evaluation of a benchmark          // demo.cpp:
-                               // the turbulence-vs-recognition study
+void add_demo(CLI::App& app);           // demo.cpp: the turbulence-vs-recognition study
+void add_eval(CLI::App& app);           // eval.cpp: the JR² evaluation of a benchmark
+void add_cotrain(CLI::App& app);        // cotrain.cpp: JR² co-optimization
 
 // bench.cpp: `vkjr2 bench NAME ARGS...` runs NAME's program with ARGS (argv,
 // argc of them) in place of this process; returns 1 after printing the error

@@ -8,7 +8,6 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <yaml-cpp/yaml.h>
 
 #include <chrono>
 #include <cmath>
@@ -23,6 +22,7 @@
 #include "checks.hpp"
 #include "cleanup.hpp"
 #include "commands.hpp"
+#include "config_file.hpp"
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
@@ -34,42 +34,8 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// --config FILE: a JSON or YAML map of this command's long option names
-// (without the dashes) to values; lists for multi-value options. Options
-// given on the command line win.
-class YamlConfig : public CLI::Config {
- public:
-  std::string to_config(const CLI::App*, bool, bool, std::string) const override { return {}; }
-  std::vector<CLI::ConfigItem> from_config(std::istream& in) const override {
-    std::stringstream text;
-    text << in.rdbuf();
-    YAML::Node root;
-    try {
-      root = YAML::Load(text.str());
-    } catch (const YAML::Exception& e) {
-      throw CLI::ConversionError("--config: not JSON or YAML: " + std::string(e.what()));
-    }
-    std::vector<CLI::ConfigItem> out;
-    if (root.IsNull()) return out;
-    if (!root.IsMap()) throw CLI::ConversionError("--config: the file must hold a map of options");
-    for (const auto& kv : root) {
-      CLI::ConfigItem item;
-      item.name = kv.first.as<std::string>();
-      if (kv.second.IsSequence()) {
-        for (const auto& v : kv.second) item.inputs.push_back(v.as<std::string>());
-      } else if (kv.second.IsScalar()) {
-        item.inputs.push_back(kv.second.as<std::string>());
-      } else {
-        throw CLI::ConversionError("--config: " + item.name + " must be a value or a list");
-      }
-      out.push_back(std::move(item));
-    }
-    return out;
-  }
-};
-
 struct TrainArgs {
-  std::string output, checkpoint, log_path, device, enc = "1,1,1", dec = "1,1,1";
+  std::string output, checkpoint, log_path, device, config, enc = "1,1,1", dec = "1,1,1";
   std::vector<std::string> images, blur_models;
   std::vector<double> d_over_r0{1, 8}, scale{0.4, 1.0};
   bool uncorrelated_high_order = false;
@@ -233,8 +199,9 @@ void add_restore_train(CLI::App& app) {
       "  vkjr2 restore-train mine.safetensors --resume       # after an interruption\n"
       "  vkjr2 restore-train mine.safetensors --config train.yaml   # options as a JSON/YAML "
       "map");
-  cmd->config_formatter(std::make_shared<YamlConfig>());
-  cmd->set_config("--config", "", "JSON or YAML map of these options (long names, no dashes)");
+  cmd->add_option("--config", a->config,
+                  "JSON or YAML map of these options (long names, no dashes; the command line "
+                  "wins)");
   cmd->add_option("OUT", a->output, "Output model (.safetensors)")->required();
   cmd->add_option("--images", a->images,
                   "Folders of clean images and videos (default: opencv-doc's sample data)");
@@ -327,7 +294,10 @@ void add_restore_train(CLI::App& app) {
   cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
   cmd->add_flag("--quiet", a->quiet, "No progress bar");
   cmd->add_flag("--force", a->force, "Replace existing output and checkpoint files");
-  cmd->callback([a] { run_restore_train(*a); });
+  cmd->callback([a, cmd] {
+    apply_config_file(cmd, a->config);
+    run_restore_train(*a);
+  });
 }
 
 }  // namespace vkjr2::cli

@@ -21,22 +21,16 @@
 #include <utility>
 
 #include "internal/text_and_draws.hpp"
+#include "internal/training.hpp"
 
 namespace vkjr2::jr2 {
 namespace {
 
 namespace k = kernels;
+using detail::Clock;
+using detail::mix;
+using detail::seconds_since;
 using nets::Var;
-using Clock = std::chrono::steady_clock;
-
-double seconds_since(Clock::time_point t0) {
-  return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-// A seed from two numbers.
-std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
-  return detail::splitmix_finalize(a * detail::kGoldenGamma + b + 0x632be59bd9b4e019ULL);
-}
 
 double unit(std::mt19937_64& rng) { return detail::unit_interval(rng()); }
 
@@ -195,9 +189,8 @@ struct RestoreTrainer::Impl {
   // [pool, K, s, s] and the basis they weight.
   Tensor pool_flow, pool_beta, basis;
   Tensor val_frames, val_clean;
-  Tensor batch_frames, batch_clean, batch_flow, batch_beta, batch_reference, norms;
-  std::vector<std::pair<std::string, Var>> params;
-  std::vector<Tensor> squares;  // per parameter, for the gradient norm and clipping
+  Tensor batch_frames, batch_clean, batch_flow, batch_beta, batch_reference;
+  detail::GradientNorm gradient_norm;
   double pending_sim_seconds = 0;
 
   Impl(const Device& d, const RestoreTrainOptions& options, std::vector<TrainImage> tr,
@@ -210,7 +203,8 @@ struct RestoreTrainer::Impl {
         net(d, options.net, std::uint32_t(mix(options.seed, 0x6e6574))),
         adam(net.named_parameters(),
              {.lr = options.lr, .weight_decay = options.weight_decay, .decoupled = true}),
-        stream(d) {
+        stream(d),
+        gradient_norm(d, net.named_parameters()) {
     schedule.base_lr = o.lr;
     schedule.min_lr = o.min_lr;
     schedule.warmup_steps = std::uint32_t(o.warmup_steps);
@@ -220,9 +214,6 @@ struct RestoreTrainer::Impl {
     pool_clean = Tensor::empty(d, Shape{o.pool, 3, s, s});
     batch_frames = Tensor::empty(d, Shape{o.batch, t3, s, s});
     batch_clean = Tensor::empty(d, Shape{o.batch, 3, s, s});
-    params = net.named_parameters();
-    for (const auto& [name, v] : params) squares.push_back(Tensor::empty(d, v.shape()));
-    norms = Tensor::empty(d, Shape{std::int64_t(4 * params.size())});
     if (o.explicit_weight > 0) {
       // The maps' shapes and the basis, from a simulator of these settings.
       const sim::Simulator probe(d, probe_sim_params(o.d_over_r0_lo, int(s)), blur, sim_options());
@@ -393,40 +384,18 @@ RestoreStepReport RestoreTrainer::train_step() {
     loss = nets::add(tape, loss, nets::scale_shift(tape, consistency, o.explicit_weight));
   }
   tape.backward(loss);
-  // Global gradient norm: Σ g² per parameter into norms[4i] (16-byte aligned views).
-  const auto& params = m.params;
-  for (std::size_t i = 0; i < params.size(); ++i) {
-    const Var& v = params[i].second;
-    if (!v.has_grad()) continue;
-    const Tensor& sq = m.squares[i];
-    k::mul(m.stream, v.grad(), v.grad(), sq);
-    k::sum_all(m.stream, sq.reshape(Shape{sq.numel()}),
-               m.norms.view(Shape{1}, 4 * std::int64_t(i)));
-  }
+  m.gradient_norm.record(m.stream);
   m.stream.run();
   r.loss = loss.value().download()[0];
   if (consistency.defined()) r.consistency = consistency.value().download()[0];
-  const std::vector<float> norms = m.norms.download();
-  double sum = 0;
-  for (std::size_t i = 0; i < params.size(); ++i) {
-    if (params[i].second.has_grad()) sum += double(norms[4 * i]);
-  }
-  r.grad_norm = std::sqrt(sum);
+  r.grad_norm = m.gradient_norm.norm();
   if (!std::isfinite(r.loss) || !std::isfinite(r.grad_norm)) {
     throw Error("restore-train",
                 "the loss or gradient norm became " + std::to_string(r.loss) + " / " +
                     std::to_string(r.grad_norm) + " at step " + std::to_string(s + 1),
                 "lower --lr or --clip-grad, or resume from the last checkpoint");
   }
-  if (o.clip_grad_norm > 0 && r.grad_norm > o.clip_grad_norm) {
-    const float f = float(o.clip_grad_norm / r.grad_norm);
-    for (std::size_t i = 0; i < params.size(); ++i) {
-      const Var& v = params[i].second;
-      if (!v.has_grad()) continue;
-      k::scale_shift(m.stream, v.grad(), f, 0.f, m.squares[i]);
-      k::copy(m.stream, m.squares[i], v.grad());
-    }
-  }
+  m.gradient_norm.clip(m.stream, r.grad_norm, o.clip_grad_norm);
   r.lr = m.schedule.at(std::uint32_t(s));
   m.adam.set_lr(float(r.lr));
   m.adam.step(m.stream);

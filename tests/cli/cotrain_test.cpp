@@ -1,0 +1,120 @@
+// `vkjr2 cotrain` as a user runs it: a tiny benchmark and a tiny restorer,
+// two steps, resumed to three with the same log; the model it writes is a
+// restorer `vkjr2 restore` reads; bad options are usage errors before any
+// work.
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "support/cli_checks.hpp"
+#include "support/cli_files.hpp"
+#include "support/run_cli.hpp"
+
+namespace {
+
+namespace fs = std::filesystem;
+using nlohmann::json;
+using vkjr2::test::parse_json;
+using vkjr2::test::run_cli;
+using vkjr2::test::TempDir;
+
+TEST(CliCotrain, TrainsResumesAndWritesARestorer) {
+  TempDir tmp("cli_cotrain");
+  const fs::path bench = tmp.path / "bench";
+  auto r = run_cli("dataset make --out " + bench.string() +
+                   " --max-identities 3 --strengths weak --frames 2 --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  // The teacher: a tiny restorer of one training step.
+  const fs::path images = tmp.path / "images", teacher = tmp.path / "teacher.safetensors";
+  fs::create_directories(images);
+  for (const auto& e : fs::recursive_directory_iterator(bench)) {
+    if (e.path().extension() == ".png" && !fs::exists(images / e.path().filename())) {
+      fs::copy_file(e.path(), images / e.path().filename());
+    }
+  }
+  r = run_cli("restore-train " + teacher.string() + " --images " + images.string() +
+              " --val-every 2 --frames 2 --width 4 --enc-blocks 1 --dec-blocks 1 "
+              "--middle-blocks 0 --crop 16 --batch 2 --pool 2 --val-clips 1 --steps 1 --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+
+  const fs::path model = tmp.path / "co.safetensors", log = tmp.path / "co.jsonl";
+  const fs::path config = tmp.path / "co.yaml";
+  std::ofstream(config) << "window: 64\nbatch: 2\n";
+  const std::string common = " --benchmark " + (bench / "manifest.json").string() +
+                             " --pretrained " + teacher.string() +
+                             " --pool 2 --val-clips 2 --warmup 1 --lambda 100 --eval-every 2"
+                             " --checkpoint-every 1 --quiet --json --config " +
+                             config.string() + " --log " + log.string();
+  r = run_cli("cotrain " + model.string() + common + " --steps 2");
+  ASSERT_EQ(r.code, 0) << r.output;
+  json j = parse_json(r.output);
+  EXPECT_EQ(j["steps"], 2);
+  EXPECT_EQ(j["identities"], 3);
+  EXPECT_GT(j["student"]["psnr"].get<double>(), 10.0) << r.output;
+  // Resumed to three steps: another --steps is another schedule, so the
+  // resume is refused, naming it; the same settings go on.
+  r = run_cli("cotrain " + model.string() + common + " --steps 3 --resume --force");
+  EXPECT_EQ(r.code, 1) << r.output;
+  EXPECT_NE(r.output.find("cotrain.steps"), std::string::npos) << r.output;
+  fs::remove(model);
+  r = run_cli("cotrain " + model.string() + common + " --steps 2 --resume");
+  ASSERT_EQ(r.code, 0) << r.output;
+
+  std::ifstream in(log);
+  int configs = 0, steps = 0, scores = 0;
+  for (std::string line; std::getline(in, line);) {
+    const json l = json::parse(line);
+    configs += l.contains("config") ? 1 : 0;
+    if (l.contains("loss")) {
+      ++steps;
+      EXPECT_TRUE(l.contains("stages") && l["stages"].contains("backward")) << line;
+      EXPECT_GT(l["recognition"].get<double>(), 0.0) << line;
+    }
+    scores += l.contains("student") ? 1 : 0;
+  }
+  EXPECT_EQ(configs, 2);  // one per run (the refused one stopped before its log)
+  EXPECT_EQ(steps, 2);
+  EXPECT_EQ(scores, 2);  // after step 2, and again on the resume that found the run done
+
+  // The co-trained model is a restorer.
+  fs::path probe;
+  for (const auto& e : fs::recursive_directory_iterator(bench / "probes")) {
+    if (e.path().extension() == ".avi") probe = e.path();
+  }
+  r = run_cli("restore " + probe.string() + " " + (tmp.path / "out.png").string() + " --model " +
+              model.string() + " --quiet");
+  EXPECT_EQ(r.code, 0) << r.output;
+}
+
+TEST(CliCotrain, BadOptionsAreUsageErrors) {
+  TempDir tmp("cli_cotrain_bad");
+  const fs::path out = tmp.path / "co.safetensors", missing = tmp.path / "none.json";
+  auto r = run_cli("cotrain " + out.string() + " --benchmark " + missing.string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("none.json"), std::string::npos) << r.output;
+  const fs::path manifest = tmp.path / "manifest.json";
+  std::ofstream(manifest) << "{}";
+  for (const auto& [args, word] :
+       std::vector<std::pair<std::string, std::string>>{{"--lambda -1", "--lambda"},
+                                                        {"--order restore-last", "restore-last"},
+                                                        {"--layers top", "top"},
+                                                        {"--batch 1", "--batch"},
+                                                        {"--window 100", "--window"}}) {
+    r = run_cli("cotrain " + out.string() + " --benchmark " + manifest.string() + " " + args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.output;
+    EXPECT_NE(r.output.find(word), std::string::npos) << args << "\n" << r.output;
+  }
+  // A config file's keys are the options' long names; another key is named.
+  const fs::path config = tmp.path / "co.yaml";
+  std::ofstream(config) << "windw: 64\n";
+  r = run_cli("cotrain " + out.string() + " --benchmark " + manifest.string() + " --config " +
+              config.string());
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("'windw' is not an option"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out));
+}
+
+}  // namespace
