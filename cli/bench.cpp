@@ -36,7 +36,7 @@ struct Benchmark {
   const char* what;
 };
 
-constexpr std::array<Benchmark, 6> kBenchmarks{{
+constexpr std::array<Benchmark, 7> kBenchmarks{{
     {"sim", "sim_bench",
      "fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)"},
     {"kernels", "kernels_bench", "each kernel against OpenCV, FFTW or plain C++"},
@@ -46,6 +46,8 @@ constexpr std::array<Benchmark, 6> kBenchmarks{{
      "probe videos/s through the JR² recognition pipeline against face-api on TF.js WASM"},
     {"restore", "restore_bench",
      "the restorer's inference frames/s and training steps/s against PyTorch on the CPU"},
+    {"cotrain", "cotrain_bench",
+     "a JR² co-training step, stage by stage, and its device memory against PyTorch on the CPU"},
 }};
 
 const Benchmark* find_benchmark(std::string_view name) {

@@ -7,6 +7,8 @@
 #include <vkjr2/jr2/restorer.hpp>
 #include <vkjr2/nets/autograd.hpp>
 #include <vkjr2/nets/face_common.hpp>
+#include <vkjr2/nets/ops.hpp>
+#include <vkjr2/nets/safetensors.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/host_tensor.hpp>
@@ -63,6 +65,7 @@ struct Method {
   std::string name;                         // as reported ("restored:restorer_default")
   std::unique_ptr<jr2::Restorer> restorer;  // restored:MODEL
   bool classical = false;
+  bool align_first = false;  // a `vkjr2 cotrain --order align-first` model: restores aligned crops
 };
 
 // Checks a method's text before any work: its name, and its model file.
@@ -91,6 +94,9 @@ Method load_method(const Device& device, const std::string& text) {
   if (!model.empty()) {
     m.restorer = jr2::Restorer::load(device, model);
     m.name = "restored:" + model.stem().string();
+    const auto meta = nets::read_safetensors(model).metadata;
+    const auto order = meta.find("cotrain.order");
+    m.align_first = order != meta.end() && order->second == "align-first";
   }
   return m;
 }
@@ -263,6 +269,14 @@ void run_eval(const EvalArgs& a) {
     method_list.push_back(load_method(device, text));
     methods.push_back(method_list.back().name);
   }
+  for (const Method& md : method_list) {
+    if (md.align_first &&
+        (protocol.aligns.size() != 1 || protocol.aligns[0] != jr2::AlignMode::similarity)) {
+      throw UsageError("--method " + md.name,
+                       "an align-first model restores the similarity-aligned crop",
+                       "evaluate it with --align similarity");
+    }
+  }
   const jr2::FaceAnalyzer analyzer(device);
   const jr2::ProbePipeline pipeline(analyzer, protocol);
   Stream stream(device);
@@ -300,7 +314,7 @@ void run_eval(const EvalArgs& a) {
       // them again.
       std::vector<Tensor> sampled;
       const auto frame = [&](int f) {
-        if (!method_def.restorer && !method_def.classical) {
+        if ((!method_def.restorer && !method_def.classical) || method_def.align_first) {
           sampled.push_back(image_to_device(device, frames[std::size_t(f)]));
           return sampled.back();
         }
@@ -321,7 +335,39 @@ void run_eval(const EvalArgs& a) {
         sampled.push_back(jr2::to_pixels(stream, unit));
         return sampled.back();
       };
-      const jr2::ProbeOutcome po = pipeline.run(stream, int(frames.size()), frame, sampler_seed);
+      // Align-first: the tracked faces' crops are the window's frames aligned
+      // by the frame's similarity and restored; their quality is against the
+      // clean clip aligned the same way.
+      std::vector<jr2::ClipQuality> crop_quality;
+      const auto aligned_crop = [&](Stream& s, int f, const jr2::Similarity& sim) {
+        const jr2::Restorer& net = *method_def.restorer;
+        std::vector<Tensor> window;
+        for (std::size_t i :
+             jr2::restore_window(frames.size(), std::size_t(f), net.config().frames)) {
+          window.push_back(raw(i));
+        }
+        const Tensor stacked = jr2::stack_frames(s, window);
+        const std::int64_t c = nets::kRecognitionInputSize;
+        const auto theta = jr2::crop_theta(sim, stacked.shape()[3], stacked.shape()[2], c, c);
+        nets::Tape tape(s, false);
+        const nets::Var grid = nets::affine_grid(
+            tape, nets::Var(Tensor::from(device, Shape{1, 2, 3}, theta)), c, c, false);
+        const nets::Var in = nets::grid_sample(tape, nets::Var(stacked), grid,
+                                               {kernels::SamplePadding::zeros, false});
+        Tensor crop = jr2::to_pixels(s, net.forward(tape, in).value());
+        const Tensor clean_crop = jr2::align_crop(tape, nets::Var(clean), sim, int(c)).value();
+        crop_quality.push_back(jr2::clip_quality(s, std::span(&crop, 1), clean_crop));
+        return crop;
+      };
+      jr2::ProbeOutcome po;
+      if (method_def.align_first) {
+        jr2::ProtocolOptions with_crops = protocol;
+        with_crops.aligned_crop = aligned_crop;
+        po = jr2::ProbePipeline(analyzer, with_crops)
+                 .run(stream, int(frames.size()), frame, sampler_seed);
+      } else {
+        po = pipeline.run(stream, int(frames.size()), frame, sampler_seed);
+      }
       // Image quality of the same sampled frames against the clean clip.
       if (!(sampled.front().shape() == clean.shape())) {
         throw Error("eval",
@@ -329,7 +375,17 @@ void run_eval(const EvalArgs& a) {
                         p.file + " has frames of " + sampled.front().shape().str(),
                     "make the benchmark again (vkjr2 dataset make)");
       }
-      const jr2::ClipQuality quality = jr2::clip_quality(stream, sampled, clean);
+      jr2::ClipQuality quality = jr2::clip_quality(stream, sampled, clean);
+      if (method_def.align_first) {
+        quality = {std::nan(""), std::nan("")};  // no face tracked: no crop restored
+        if (!crop_quality.empty()) {
+          quality = {0, 0};
+          for (const auto& q : crop_quality) {
+            quality.psnr_db += q.psnr_db / double(crop_quality.size());
+            quality.ssim += q.ssim / double(crop_quality.size());
+          }
+        }
+      }
       for (std::size_t al = 0; al < protocol.aligns.size(); ++al) {
         jr2::ProbeRecord r;
         r.method = method;

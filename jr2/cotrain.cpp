@@ -105,8 +105,9 @@ unsigned parse_layer_groups(const std::string& text) {
     } else if (part == "late") {
       g |= kLateLayers;
     } else {
-      throw InvalidArgument("cotrain", "unknown layer group '" + part + "' in '" + text + "'",
-                            "use all, or a comma list of early, middle, late");
+      std::string what = "unknown layer group '" + part;
+      what += "' in '" + text + "'";
+      throw InvalidArgument("cotrain", what, "use all, or a comma list of early, middle, late");
     }
     at = end + 1;
   }
@@ -485,7 +486,7 @@ struct CoTrainer::Impl {
     const std::int64_t n = frames.shape()[0], w = frames.shape()[3];
     const Tensor ref = Tensor::empty(device, Shape{n, 3, w, w});
     k::slice(stream, frames, {3LL * teacher->config().reference_frame(), 0, 0}, ref);
-    const Tensor px = Tensor::empty(device, ref.shape());
+    Tensor px = Tensor::empty(device, ref.shape());
     k::scale_shift(stream, ref, 255.f, 0.f, px);
     return px;
   }
@@ -711,7 +712,7 @@ CoTrainEvalReport CoTrainer::evaluate() {
     return row;
   };
   auto restore = [&](const Restorer& net) {
-    const Tensor outs = Tensor::empty(m.device, Shape{v, 3, c, c});
+    Tensor outs = Tensor::empty(m.device, Shape{v, 3, c, c});
     for (std::int64_t b0 = 0; b0 < v; b0 += o.batch) {
       const std::int64_t n = std::min<std::int64_t>(o.batch, v - b0);
       nets::Tape t(m.stream, false);

@@ -64,12 +64,12 @@ unsigned layer_group_of(const std::string& parameter, int levels);
 
 struct CoTrainOptions {
   CoTrainOrder order = CoTrainOrder::restore_first;
-  float lambda = 10.f;           // weight of the self-distillation L1 (0: fine-tune)
+  float lambda = 1000.f;         // weight of the self-distillation L1 (0: fine-tune)
   unsigned layers = kAllLayers;  // the student's trainable layer groups
   int window = 128;              // the restored face window, window² pixels (multiple of 2^levels)
   int jitter = 8;                // the window's centre moves up to ±jitter pixels
   int batch = 8;                 // ≥ 2 (AdaFace's batch statistics)
-  int steps = 200;
+  int steps = 100;
   float lr = 1e-4f, min_lr = 1e-6f, weight_decay = 0.f;
   int warmup_steps = 10;
   float clip_grad_norm = 1.f;                 // 0: no clipping
@@ -123,8 +123,9 @@ class CoTrainer {
  public:
   // pretrained: the restorer file that is both the teacher and the student's
   // start. faces: at least 2 identities; val faces are the held-out clips'
-  // sources (may be the same faces: other realizations). blur: the
-  // simulator's models (paired faces).
+  // sources (may be the same faces: other realizations; paired or not,
+  // whatever the training faces are), each of a training identity. blur:
+  // the simulator's models (for paired faces).
   CoTrainer(const Device& device, const CoTrainOptions& options,
             const std::filesystem::path& pretrained, std::vector<CoTrainFace> faces,
             std::vector<CoTrainFace> val, std::vector<std::shared_ptr<const sim::BlurModel>> blur);

@@ -45,6 +45,10 @@ void check_protocol_options(const ProtocolOptions& o) {
          "keep the defaults (0.3, 0.25, 0.5) unless the clips are cut otherwise");
   }
   if (o.aligns.empty()) fail("align", "no alignment", "name face_api and/or similarity");
+  if (o.aligned_crop && (o.aligns.size() != 1 || o.aligns[0] != AlignMode::similarity)) {
+    fail("align", "align-first restoration with an alignment other than similarity only",
+         "evaluate align-first models with --align similarity");
+  }
 }
 
 ProbePipeline::ProbePipeline(const FaceAnalyzer& analyzer, ProtocolOptions options)
@@ -108,6 +112,7 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
   out.templates.resize(o.aligns.size());
   std::vector<Face> tracked_faces;
   std::vector<Tensor> tracked_images;
+  std::vector<int> tracked_frames;
   for (std::size_t i = 0; i < picked.size(); ++i) {
     FrameOutcome fo;
     fo.frame = picked[i];
@@ -132,12 +137,26 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
       tracked_faces.emplace_back();
       analyzer_.locate(stream, images[i], best->det, tracked_faces.back());
       tracked_images.push_back(images[i]);
+      tracked_frames.push_back(picked[i]);
       out.seconds.landmarks += since(t0);
     }
     out.frames.push_back(fo);
   }
   const auto t_embed = Clock::now();
   for (std::size_t a = 0; a < o.aligns.size() && !tracked_faces.empty(); ++a) {
+    if (o.aligned_crop) {  // align-first: the caller's crops of the tracked faces
+      const int size = int(nets::kRecognitionInputSize);
+      for (std::size_t k = 0; k < tracked_faces.size(); ++k) {
+        const Face& f = tracked_faces[k];
+        const std::vector<float> lm(f.landmarks.begin(), f.landmarks.end());
+        const Similarity s = fit_similarity(five_points(lm), canonical_points(size));
+        const Tensor crop = o.aligned_crop(stream, tracked_frames[k], s);
+        const Tensor d = analyzer_.recognition_net().describe(stream, crop);
+        stream.run();
+        out.descriptors[a].push_back(d.download());
+      }
+      continue;
+    }
     const std::vector<bool> ok =
         analyzer_.embed_batch(stream, tracked_images, o.aligns[a], tracked_faces);
     for (std::size_t k = 0; k < ok.size(); ++k) {

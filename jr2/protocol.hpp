@@ -38,6 +38,12 @@ struct ProtocolOptions {
   double gallery_face_share = 0.5;
   std::vector<AlignMode> aligns = {AlignMode::face_api, AlignMode::similarity};
   TemplateFusion fusion = TemplateFusion::norm_weighted;
+  // Align-first restoration (docs/jr2.md): when set, the similarity
+  // alignment's crop of sampled frame `frame` is aligned_crop(stream, frame,
+  // image_to_crop) — [1, 3, 150, 150], 0..255, e.g. the window's frames
+  // aligned by that similarity and restored — instead of the frame's own
+  // crop. Needs aligns = {similarity} only.
+  std::function<Tensor(Stream&, int frame, const Similarity& image_to_crop)> aligned_crop;
 };
 // Throws InvalidArgument naming the option at fault.
 void check_protocol_options(const ProtocolOptions& options);

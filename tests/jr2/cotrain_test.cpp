@@ -73,7 +73,7 @@ std::vector<CoTrainFace> sample_faces(std::size_t count) {
 
 // A tiny restorer file (2 frames, width 4, one level): the teacher.
 std::filesystem::path tiny_restorer(const std::filesystem::path& dir) {
-  const auto path = dir / "tiny.safetensors";
+  auto path = dir / "tiny.safetensors";
   if (!std::filesystem::exists(path)) {
     const Restorer r(test::device(), RestorerConfig{2, 4, {1}, 0, {1}}, 3);
     r.save(path);
