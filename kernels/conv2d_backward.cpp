@@ -77,6 +77,57 @@ void conv2d_backward_data(Stream& stream, const Tensor& dy, const Tensor& weight
     }
   }
 
+  // Stride s ≥ 2 (both axes), groups 1, dilation 1: the phase decomposition.
+  // With j = i + pad = s·q + r, dX[i] = Σ_m W[r + s·m] dY[q − m]: for each
+  // phase r a stride-1 "full" correlation of dY with the sub-kernel
+  // W[r::s] — the transposed blocked conv below with padding K_r − 1. The
+  // sub-kernels of all s² phases side by side are pixel_unshuffle(s) of the
+  // weight [Cout, Cin, K', K'] zero-padded to a multiple of s: channel
+  // c·s² + ry·s + rx holds W[·, c, ry::s, rx::s]. One conv gives
+  // every phase of every channel in that order, pixel_shuffle(s) interleaves
+  // them into dX shifted by pad, and a slice takes dX.
+  const std::int64_t st = p.stride_y;
+  if (p.algo == Conv2dAlgo::auto_select && p.groups == 1 && st >= 2 && st <= 4 &&
+      p.stride_x == st && p.dilation_y == 1 && p.dilation_x == 1) {
+    const std::int64_t kr_y = (d.kh + st - 1) / st, kr_x = (d.kw + st - 1) / st;
+    const std::int64_t qy = (p.pad.top + d.h + st - 1) / st;
+    const std::int64_t qx = (p.pad.left + d.w + st - 1) / st;
+    const Dims td{d.n, d.cout, d.hout, d.wout, d.cin * st * st, kr_y, kr_x, qy, qx};
+    Conv2dParams pp;
+    pp.pad.top = int(kr_y - 1);
+    pp.pad.left = int(kr_x - 1);
+    const std::int64_t max_planes = stream.device().info().max_workgroup_count[2];
+    const bool fits = 4 * d.cin <= max_planes && small_kernel(td, pp) &&
+                      padded_elements(td, pp, Conv2dAlgo::blocked, stream.device().traits()) <=
+                          stream.device().info().max_texel_buffer_elements;
+    if (fits) {
+      const Device& dev = stream.device();
+      // Temporaries: kept alive by the stream until it has run.
+      const std::int64_t k2y = kr_y * st, k2x = kr_x * st;
+      const Tensor padded_w = Tensor::empty(dev, Shape{d.cout, d.cin, k2y, k2x});
+      const Tensor phases_w = Tensor::empty(dev, Shape{d.cout, d.cin * st * st, kr_y, kr_x});
+      // In chunks of output channels: the shuffle dispatches one workgroup
+      // row per (n, c) plane. A multiple of 4: the views start 16-byte aligned.
+      const std::int64_t chunk = max_planes / d.cin / 4 * 4;
+      for (std::int64_t c0 = 0; c0 < d.cout; c0 += chunk) {
+        const std::int64_t cc = std::min(chunk, d.cout - c0);
+        const std::int64_t per = d.cin * k2y * k2x;
+        const Tensor pw = padded_w.view(Shape{cc, d.cin, k2y, k2x}, c0 * per);
+        pad(stream, weight.view(Shape{cc, d.cin, d.kh, d.kw}, c0 * d.cin * d.kh * d.kw),
+            Pad2d{0, int(k2y - d.kh), 0, int(k2x - d.kw)}, 0.f, pw);
+        pixel_unshuffle(stream, pw, int(st),
+                        phases_w.view(Shape{cc, d.cin * st * st, kr_y, kr_x}, c0 * per));
+      }
+      const Tensor phases = Tensor::empty(dev, Shape{d.n, d.cin * st * st, qy, qx});
+      run_forward(stream, Conv2dAlgo::blocked, dy, phases_w, nullptr, phases, push_of(td, pp),
+                  true);
+      const Tensor shifted = Tensor::empty(dev, Shape{d.n, d.cin, qy * st, qx * st});
+      pixel_shuffle(stream, phases, int(st), shifted);
+      slice(stream, shifted, {0, p.pad.top, p.pad.left}, dx);
+      return;
+    }
+  }
+
   // Stride 1, groups 1: dX = conv(dY, W'), W'[ci][co] = W[co][ci] flipped in
   // both axes, padding (K−1)·d − pad (may be negative: the pad pass crops).
   Conv2dParams tp;

@@ -188,6 +188,19 @@ std::vector<Case> edge_cases() {
   cases.push_back(c);
   c.d = {2, 12, 20, 26, 24, 1, 1};  // 520: vec4 reads and stores, a last block of 8 pixels
   cases.push_back(c);
+  // Strided backward-data by phases (conv2d_backward.cpp): stride 3 with a
+  // kernel not a multiple of it and uneven padding; stride 2 with Cout·Cin
+  // past one dispatch's workgroup rows (the weight rearranged in chunks).
+  c.d = {2, 4, 10, 11, 5, 4, 4};
+  c.p = {};
+  c.p.stride_y = c.p.stride_x = 3;
+  c.p.pad = {1, 2, 0, 1};
+  cases.push_back(c);
+  c.d = {1, 260, 3, 3, 256, 3, 3};
+  c.p = {};
+  c.p.stride_y = c.p.stride_x = 2;
+  c.p.pad = {1, 1, 1, 1};
+  cases.push_back(c);
   return cases;
 }
 
