@@ -182,22 +182,28 @@ def write_atomic(path, text):
 def main(argv):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("run_dir")
-    p.add_argument("--eval", required=True, help="results.json of vkjr2 eval")
+    p.add_argument("--eval", required=True, action="append",
+                   help="results.json of vkjr2 eval (repeatable: the rows are merged)")
     p.add_argument("--out", required=True, help="the markdown report")
     p.add_argument("--plot", help="the λ plot (SVG)")
     p.add_argument("--lambda-main", type=float, default=1000, help="λ of restore_first")
     a = p.parse_args(argv)
-    ev = load_json(a.eval, "evaluation")
     rows = {}
     strengths = []
-    for r in ev.get("rows", []):
-        rows[(r["method"], r["strength"])] = r
-        if r["strength"] not in strengths:
-            strengths.append(r["strength"])
+    evals = [load_json(path, "evaluation") for path in a.eval]
+    for path, ev in zip(a.eval, evals):
+        if ev.get("split") != evals[0].get("split"):
+            raise CliError(f"{path} is of split {ev.get('split')}, {a.eval[0]} of "
+                           f"{evals[0].get('split')}; merge evaluations of one split")
+        for r in ev.get("rows", []):
+            rows[(r["method"], r["strength"])] = r
+            if r["strength"] not in strengths:
+                strengths.append(r["strength"])
     if not rows:
-        raise CliError(f"{a.eval} has no rows")
+        raise CliError(f"{', '.join(a.eval)} hold no rows")
+    ev = evals[0]
     out = ["# Co-optimization study", "",
-           f"Test split of the benchmark, alignment {ev['rows'][0]['align']}, "
+           f"Split {ev['split']} of the benchmark, alignment {ev['rows'][0]['align']}, "
            f"{ev['bootstrap']['resamples']} bootstrap resamples "
            f"({ev['bootstrap']['unit']}); values with 95 % intervals.", ""]
 
@@ -205,9 +211,8 @@ def main(argv):
         return [(label, method_name(run)) for label, run in pairs]
 
     out += table("Co-training", lab(MAIN), rows, strengths)
-    lambdas = [(0.0, "finetune"), (100.0, "lambda_100"), (300.0, "lambda_300"),
-               (a.lambda_main, "restore_first"), (3000.0, "lambda_3000"),
-               (10000.0, "lambda_10000")]
+    lambdas = [(0.0, "finetune"), (10.0, "lambda_10"), (30.0, "lambda_30"),
+               (100.0, "lambda_100"), (300.0, "lambda_300"), (a.lambda_main, "restore_first")]
     out += table("λ sweep", [(f"λ = {lam:g}", method_name(run)) for lam, run in lambdas],
                  rows, strengths)
     out += table("Trainable layers", [(f"{g}", method_name(run)) for g, run in LAYERS],
@@ -220,9 +225,8 @@ def main(argv):
     held = ["### Held-out clips of the training split (the runs' last scores)", "",
             "| run | steps | rank-1 student / teacher / degraded (%) | genuine cosine "
             "student / teacher | PSNR student / teacher / degraded (dB) |", "|---|---|---|---|---|"]
-    runs = ["finetune", "restore_first", "align_first", "lambda_100", "lambda_300",
-            "lambda_3000", "lambda_10000", "layers_early", "layers_middle", "layers_late",
-            "unpaired"]
+    runs = ["finetune", "restore_first", "align_first", "lambda_10", "lambda_30", "lambda_100",
+            "lambda_300", "layers_early", "layers_middle", "layers_late", "unpaired"]
     n_held = 0
     for run in runs:
         j = last_heldout(a.run_dir, run)
