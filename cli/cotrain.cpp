@@ -25,11 +25,11 @@
 #include "checks.hpp"
 #include "cleanup.hpp"
 #include "commands.hpp"
-#include "config_file.hpp"
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
 #include "sim_common.hpp"
+#include "training_options.hpp"
 
 namespace vkjr2::cli {
 namespace {
@@ -37,12 +37,12 @@ namespace {
 namespace fs = std::filesystem;
 
 struct CoTrainArgs {
-  std::string output, benchmark, pretrained, checkpoint, log_path, device, unpaired, config;
+  TrainRun run{.checkpoint_every = 50, .eval_every = 50};
+  std::string benchmark, pretrained, unpaired;
   std::string order = "restore-first", layers = "all", split = "val";
   std::vector<double> d_over_r0{1, 8};
-  int unpaired_frames = 12, checkpoint_every = 50, eval_every = 50;
+  int unpaired_frames = 12;
   jr2::CoTrainOptions o;
-  bool resume = false, json_out = false, quiet = false, force = false;
 };
 
 // The clean clips of a benchmark's training split: every gallery clip and
@@ -135,14 +135,8 @@ nlohmann::json row_json(const jr2::CoTrainEvalReport::Row& r) {
 }
 
 void run_cotrain(CoTrainArgs& a) {
-  check_extension(a.output, {".safetensors"}, "OUT");
-  check_output_file(a.output, a.force, "OUT");
-  if (a.checkpoint.empty()) a.checkpoint = a.output + ".ckpt";
-  if (a.resume) {
-    check_input_file(a.checkpoint, "--checkpoint");
-  } else {
-    check_output_file(a.checkpoint, a.force, "--checkpoint");
-  }
+  TrainRun& run = a.run;
+  check_run_files(run);
   check_input_file(a.benchmark, "--benchmark");
   if (a.pretrained.empty()) a.pretrained = jr2::default_restorer_path().string();
   check_input_file(a.pretrained, "--pretrained");
@@ -156,13 +150,13 @@ void run_cotrain(CoTrainArgs& a) {
   } catch (const InvalidArgument& e) {
     throw UsageError("cotrain", e.problem(), e.fix());
   }
-  watch_output_folder(fs::path(a.output).parent_path());
+  watch_output_folder(fs::path(run.output).parent_path());
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<jr2::CoTrainFace> faces = training_faces(a.benchmark, a.split);
-  Device device = open_device(a.device);
+  Device device = open_device(run.device);
   std::vector<jr2::CoTrainFace> val = faces;  // other realizations of the same clips
   if (!a.unpaired.empty()) {
-    faces = unpaired_faces(device, a.unpaired, faces, a.unpaired_frames, o.seed, a.quiet);
+    faces = unpaired_faces(device, a.unpaired, faces, a.unpaired_frames, o.seed, run.quiet);
   }
   const std::size_t n_faces = faces.size();
   jr2::CoTrainer trainer(device, o, a.pretrained, std::move(faces), std::move(val),
@@ -172,7 +166,7 @@ void run_cotrain(CoTrainArgs& a) {
       {"cotrain.split", a.split},
       {"cotrain.pretrained", fs::path(a.pretrained).filename().string()},
       {"cotrain.unpaired", a.unpaired.empty() ? "" : fs::path(a.unpaired).filename().string()}};
-  if (a.resume) trainer.load_checkpoint(a.checkpoint);
+  if (run.resume) trainer.load_checkpoint(run.checkpoint);
   log_info("cotrain: " + std::to_string(n_faces) + " training clips of " +
            std::to_string(trainer.identities().size()) + " identities, " +
            jr2::order_name(o.order) + ", λ " + readable(o.lambda) + ", layers " +
@@ -180,9 +174,9 @@ void run_cotrain(CoTrainArgs& a) {
            std::to_string(trainer.trainable_parameters()) + " trainable parameters");
 
   std::ofstream log_file;
-  if (!a.log_path.empty()) {
-    log_file.open(a.log_path, a.resume ? std::ios::app : std::ios::trunc);
-    if (!log_file) throw Error("cotrain", "cannot write --log " + a.log_path, "check the folder");
+  if (!run.log_path.empty()) {
+    log_file.open(run.log_path, run.resume ? std::ios::app : std::ios::trunc);
+    if (!log_file) throw Error("cotrain", "cannot write --log " + run.log_path, "check the folder");
   }
   auto write_log = [&](const nlohmann::json& j) {
     if (log_file) log_file << j.dump() << "\n" << std::flush;
@@ -194,10 +188,10 @@ void run_cotrain(CoTrainArgs& a) {
     write_log({{"config", config}, {"resumed_at", trainer.step()}});
   }
   {
-    Progress fill("cotrain: faces and the clip pool", std::size_t(o.pool), a.quiet);
+    Progress fill("cotrain: faces and the clip pool", std::size_t(o.pool), run.quiet);
     trainer.prepare([&](int done, int) { fill.update(std::size_t(done)); });
   }
-  Progress bar("cotrain", std::size_t(o.steps), a.quiet);
+  Progress bar("cotrain", std::size_t(o.steps), run.quiet);
   bar.update(std::size_t(trainer.step()));
   jr2::CoTrainEvalReport last;
   double loss_sum = 0;
@@ -243,10 +237,10 @@ void run_cotrain(CoTrainArgs& a) {
                  {"backward", r.backward_s},
                  {"update", r.update_s}}}});
     bar.update(std::size_t(r.step));
-    if (r.step % a.checkpoint_every == 0 || r.step == o.steps) {
-      trainer.save_checkpoint(a.checkpoint, run_meta);
+    if (r.step % run.checkpoint_every == 0 || r.step == o.steps) {
+      trainer.save_checkpoint(run.checkpoint, run_meta);
     }
-    if (r.step % a.eval_every == 0 || r.step == o.steps) {
+    if (r.step % run.eval_every == 0 || r.step == o.steps) {
       bar.done();
       eval();
     }
@@ -259,10 +253,10 @@ void run_cotrain(CoTrainArgs& a) {
   meta.insert(run_meta.begin(), run_meta.end());
   meta["cotrain.held_out_top1"] = readable(last.student.top1);
   if (std::isfinite(last.student.psnr)) meta["cotrain.held_out_psnr"] = readable(last.student.psnr);
-  trainer.student().save(a.output, meta);
-  if (a.json_out) {
-    const nlohmann::json j = {{"output", a.output},
-                              {"checkpoint", a.checkpoint},
+  trainer.student().save(run.output, meta);
+  if (run.json_out) {
+    const nlohmann::json j = {{"output", run.output},
+                              {"checkpoint", run.checkpoint},
                               {"steps", trainer.step()},
                               {"training_clips", n_faces},
                               {"identities", trainer.identities().size()},
@@ -276,8 +270,9 @@ void run_cotrain(CoTrainArgs& a) {
     std::printf(
         "cotrain: wrote %s after %d steps in %.0f s\n  held-out rank-1 %.1f %% (teacher %.1f, "
         "degraded %.1f), genuine cosine %.4f (teacher %.4f)\n",
-        a.output.c_str(), trainer.step(), seconds, 100 * last.student.top1, 100 * last.teacher.top1,
-        100 * last.degraded.top1, last.student.genuine_cos, last.teacher.genuine_cos);
+        run.output.c_str(), trainer.step(), seconds, 100 * last.student.top1,
+        100 * last.teacher.top1, 100 * last.degraded.top1, last.student.genuine_cos,
+        last.teacher.genuine_cos);
     if (std::isfinite(last.student.psnr)) {
       std::printf("  held-out PSNR %.2f dB (teacher %.2f, degraded %.2f), SSIM %.4f (%.4f)\n",
                   last.student.psnr, last.teacher.psnr, last.degraded.psnr, last.student.ssim,
@@ -315,10 +310,7 @@ void add_cotrain(CLI::App& app) {
       "  vkjr2 cotrain out/cotrain.safetensors --benchmark bench/jr2/manifest.json --resume\n"
       "  vkjr2 eval bench/jr2/manifest.json --out out/eval --method "
       "restored,restored:out/cotrain.safetensors");
-  cmd->add_option("--config", a->config,
-                  "JSON or YAML map of these options (long names, no dashes; the command line "
-                  "wins)");
-  cmd->add_option("OUT", a->output, "Output model (.safetensors)")->required();
+  cmd->add_option("OUT", a->run.output, "Output model (.safetensors)")->required();
   cmd->add_option("--benchmark", a->benchmark, "Benchmark manifest (vkjr2 dataset make)")
       ->required();
   cmd->add_option("--split", a->split, "The benchmark's training split")->default_val(a->split);
@@ -346,24 +338,7 @@ void add_cotrain(CLI::App& app) {
   cmd->add_option("--batch", o.batch, "Clips per step")
       ->default_val(o.batch)
       ->check(integer_range(2, 256));
-  cmd->add_option("--steps", o.steps, "Training steps")
-      ->default_val(o.steps)
-      ->check(integer_range(1, 10000000));
-  cmd->add_option("--lr", o.lr, "Peak learning rate")
-      ->default_val(o.lr)
-      ->check(finite_range(1e-8, 1));
-  cmd->add_option("--min-lr", o.min_lr, "Learning rate at the end of the cosine")
-      ->default_val(o.min_lr)
-      ->check(finite_range(0, 1));
-  cmd->add_option("--weight-decay", o.weight_decay, "AdamW decoupled weight decay")
-      ->default_val(o.weight_decay)
-      ->check(finite_range(0, 0.999));
-  cmd->add_option("--warmup", o.warmup_steps, "Linear warm-up steps")
-      ->default_val(o.warmup_steps)
-      ->check(integer_range(0, 10000000));
-  cmd->add_option("--clip-grad", o.clip_grad_norm, "Clip the global gradient norm (0: off)")
-      ->default_val(o.clip_grad_norm)
-      ->check(finite_range(0, 1e6));
+  add_schedule_options(cmd, o);
   cmd->add_option("--d-over-r0", a->d_over_r0, "D/r0 range LO HI of the simulated clips")
       ->expected(2)
       ->delimiter(',')
@@ -387,24 +362,10 @@ void add_cotrain(CLI::App& app) {
   cmd->add_option("--adaface-s", o.adaface.s, "AdaFace logit scale s")
       ->default_val(o.adaface.s)
       ->check(finite_range(1e-3, 1000));
-  cmd->add_option("--checkpoint", a->checkpoint, "Checkpoint file (default: OUT.ckpt)");
-  cmd->add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints")
-      ->default_val(a->checkpoint_every)
-      ->check(integer_range(1, 10000000));
-  cmd->add_option("--eval-every", a->eval_every, "Steps between held-out scores")
-      ->default_val(a->eval_every)
-      ->check(integer_range(1, 10000000));
-  cmd->add_option("--log", a->log_path,
-                  "JSON-lines log: the configuration, every step, every score");
-  cmd->add_flag("--resume", a->resume, "Go on from --checkpoint (same settings)");
+  add_run_options(cmd, a->run, "JSON-lines log: the configuration, every step, every score");
   add_seed_option(cmd, o.seed, "Seed of the head and the data", o.seed);
-  cmd->add_option("--device", a->device,
-                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
-  cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
-  cmd->add_flag("--quiet", a->quiet, "No progress bar");
-  cmd->add_flag("--force", a->force, "Replace existing output and checkpoint files");
   cmd->callback([a, cmd] {
-    apply_config_file(cmd, a->config);
+    apply_config_file(cmd, a->run.config);
     run_cotrain(*a);
   });
 }

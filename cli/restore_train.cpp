@@ -22,12 +22,12 @@
 #include "checks.hpp"
 #include "cleanup.hpp"
 #include "commands.hpp"
-#include "config_file.hpp"
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
 #include "sim_common.hpp"
 #include "train_images.hpp"
+#include "training_options.hpp"
 
 namespace vkjr2::cli {
 namespace {
@@ -35,24 +35,18 @@ namespace {
 namespace fs = std::filesystem;
 
 struct TrainArgs {
-  std::string output, checkpoint, log_path, device, config, enc = "1,1,1", dec = "1,1,1";
+  TrainRun run;
+  std::string enc = "1,1,1", dec = "1,1,1";
   std::vector<std::string> images, blur_models;
   std::vector<double> d_over_r0{1, 8}, scale{0.4, 1.0};
   bool uncorrelated_high_order = false;
-  int val_every = 5, video_frames = 12, checkpoint_every = 100, eval_every = 250;
+  int val_every = 5, video_frames = 12;
   jr2::RestoreTrainOptions o;
-  bool resume = false, json_out = false, quiet = false, force = false;
 };
 
 void run_restore_train(TrainArgs& a) {
-  check_extension(a.output, {".safetensors"}, "OUT");
-  check_output_file(a.output, a.force, "OUT");
-  if (a.checkpoint.empty()) a.checkpoint = a.output + ".ckpt";
-  if (a.resume) {
-    check_input_file(a.checkpoint, "--checkpoint");
-  } else {
-    check_output_file(a.checkpoint, a.force, "--checkpoint");
-  }
+  TrainRun& run = a.run;
+  check_run_files(run);
   jr2::RestoreTrainOptions& o = a.o;
   o.net.enc_blocks = jr2::parse_block_list(a.enc, "--enc-blocks");
   o.net.dec_blocks = jr2::parse_block_list(a.dec, "--dec-blocks");
@@ -67,12 +61,12 @@ void run_restore_train(TrainArgs& a) {
   } catch (const InvalidArgument& e) {
     throw UsageError("restore-train", e.problem(), e.fix());
   }
-  watch_output_folder(fs::path(a.output).parent_path());
+  watch_output_folder(fs::path(run.output).parent_path());
   const auto t0 = std::chrono::steady_clock::now();
   std::vector<jr2::TrainImage> train, val;
   load_train_images("restore-train", a.images, a.val_every, a.video_frames, o.crop, train, val);
   const std::size_t n_train = train.size(), n_val = val.size();
-  Device device = open_device(a.device);
+  Device device = open_device(run.device);
   std::string blur_names = a.blur_models.empty() ? "shipped" : "";
   for (const auto& path : a.blur_models) {
     blur_names += (blur_names.empty() ? "" : ",") + fs::path(path).filename().string();
@@ -80,26 +74,26 @@ void run_restore_train(TrainArgs& a) {
   jr2::RestoreTrainer trainer(device, o, std::move(train), std::move(val),
                               load_blur_models(device, a.blur_models));
   const std::map<std::string, std::string> run_meta = {{"train.blur_models", blur_names}};
-  if (a.resume) trainer.load_checkpoint(a.checkpoint);
+  if (run.resume) trainer.load_checkpoint(run.checkpoint);
   log_info("restore-train: " + std::to_string(n_train) + " training images, " +
            std::to_string(n_val) + " held out; " + std::to_string(o.net.parameter_count()) +
            " parameters, " + readable(o.net.flops(160, 160) / 1e9) + " GFLOP per 160² frame");
 
   std::ofstream log_file;
-  if (!a.log_path.empty()) {
-    log_file.open(a.log_path, a.resume ? std::ios::app : std::ios::trunc);
+  if (!run.log_path.empty()) {
+    log_file.open(run.log_path, run.resume ? std::ios::app : std::ios::trunc);
     if (!log_file) {
-      throw Error("restore-train", "cannot write --log " + a.log_path, "check the folder");
+      throw Error("restore-train", "cannot write --log " + run.log_path, "check the folder");
     }
   }
   auto write_log = [&](const nlohmann::json& j) {
     if (log_file) log_file << j.dump() << "\n" << std::flush;
   };
   {
-    Progress fill("restore-train: simulating the clip pool", std::size_t(o.pool), a.quiet);
+    Progress fill("restore-train: simulating the clip pool", std::size_t(o.pool), run.quiet);
     trainer.prepare([&](int done, int) { fill.update(std::size_t(done)); });
   }
-  Progress bar("restore-train", std::size_t(o.steps), a.quiet);
+  Progress bar("restore-train", std::size_t(o.steps), run.quiet);
   bar.update(std::size_t(trainer.step()));
   jr2::RestoreEvalReport last_eval;
   double loss_avg = 0;
@@ -133,10 +127,10 @@ void run_restore_train(TrainArgs& a) {
     if (o.explicit_weight > 0) line["consistency"] = r.consistency;
     write_log(line);
     bar.update(std::size_t(r.step));
-    if (r.step % a.checkpoint_every == 0 || r.step == o.steps) {
-      trainer.save_checkpoint(a.checkpoint, run_meta);
+    if (r.step % run.checkpoint_every == 0 || r.step == o.steps) {
+      trainer.save_checkpoint(run.checkpoint, run_meta);
     }
-    if (r.step % a.eval_every == 0 || r.step == o.steps) {
+    if (r.step % run.eval_every == 0 || r.step == o.steps) {
       bar.done();
       eval();
     }
@@ -153,10 +147,10 @@ void run_restore_train(TrainArgs& a) {
   meta.insert(run_meta.begin(), run_meta.end());
   meta["train.held_out_psnr"] = readable(last_eval.psnr_restored);
   meta["train.held_out_psnr_degraded"] = readable(last_eval.psnr_degraded);
-  trainer.restorer().save(a.output, meta);
-  if (a.json_out) {
-    const nlohmann::json j = {{"output", a.output},
-                              {"checkpoint", a.checkpoint},
+  trainer.restorer().save(run.output, meta);
+  if (run.json_out) {
+    const nlohmann::json j = {{"output", run.output},
+                              {"checkpoint", run.checkpoint},
                               {"steps", trainer.step()},
                               {"train_images", n_train},
                               {"held_out_images", n_val},
@@ -171,8 +165,8 @@ void run_restore_train(TrainArgs& a) {
     std::printf(
         "restore-train: wrote %s after %d steps in %.0f s\n  held-out PSNR %.2f dB (degraded "
         "%.2f), SSIM %.4f (%.4f)\n",
-        a.output.c_str(), trainer.step(), seconds, last_eval.psnr_restored, last_eval.psnr_degraded,
-        last_eval.ssim_restored, last_eval.ssim_degraded);
+        run.output.c_str(), trainer.step(), seconds, last_eval.psnr_restored,
+        last_eval.psnr_degraded, last_eval.ssim_restored, last_eval.ssim_degraded);
   }
 }
 
@@ -199,10 +193,7 @@ void add_restore_train(CLI::App& app) {
       "  vkjr2 restore-train mine.safetensors --resume       # after an interruption\n"
       "  vkjr2 restore-train mine.safetensors --config train.yaml   # options as a JSON/YAML "
       "map");
-  cmd->add_option("--config", a->config,
-                  "JSON or YAML map of these options (long names, no dashes; the command line "
-                  "wins)");
-  cmd->add_option("OUT", a->output, "Output model (.safetensors)")->required();
+  cmd->add_option("OUT", a->run.output, "Output model (.safetensors)")->required();
   cmd->add_option("--images", a->images,
                   "Folders of clean images and videos (default: opencv-doc's sample data)");
   cmd->add_option("--val-every", a->val_every, "Hold out every N-th image (by name)")
@@ -230,24 +221,7 @@ void add_restore_train(CLI::App& app) {
   cmd->add_option("--batch", o.batch, "Clips per step")
       ->default_val(o.batch)
       ->check(integer_range(1, 256));
-  cmd->add_option("--steps", o.steps, "Training steps")
-      ->default_val(o.steps)
-      ->check(integer_range(1, 10000000));
-  cmd->add_option("--lr", o.lr, "Peak learning rate")
-      ->default_val(o.lr)
-      ->check(finite_range(1e-8, 1));
-  cmd->add_option("--min-lr", o.min_lr, "Learning rate at the end of the cosine")
-      ->default_val(o.min_lr)
-      ->check(finite_range(0, 1));
-  cmd->add_option("--weight-decay", o.weight_decay, "AdamW decoupled weight decay")
-      ->default_val(o.weight_decay)
-      ->check(finite_range(0, 0.999));
-  cmd->add_option("--warmup", o.warmup_steps, "Linear warm-up steps")
-      ->default_val(o.warmup_steps)
-      ->check(integer_range(0, 10000000));
-  cmd->add_option("--clip-grad", o.clip_grad_norm, "Clip the global gradient norm (0: off)")
-      ->default_val(o.clip_grad_norm)
-      ->check(finite_range(0, 1e6));
+  add_schedule_options(cmd, o);
   cmd->add_option("--d-over-r0", a->d_over_r0, "D/r0 range LO HI of the training clips")
       ->expected(2)
       ->delimiter(',')
@@ -279,23 +253,10 @@ void add_restore_train(CLI::App& app) {
   cmd->add_option("--val-clips", o.val_clips, "Held-out clips scored")
       ->default_val(o.val_clips)
       ->check(integer_range(1, 4096));
-  cmd->add_option("--checkpoint", a->checkpoint, "Checkpoint file (default: OUT.ckpt)");
-  cmd->add_option("--checkpoint-every", a->checkpoint_every, "Steps between checkpoints")
-      ->default_val(a->checkpoint_every)
-      ->check(integer_range(1, 10000000));
-  cmd->add_option("--eval-every", a->eval_every, "Steps between held-out scores")
-      ->default_val(a->eval_every)
-      ->check(integer_range(1, 10000000));
-  cmd->add_option("--log", a->log_path, "JSON-lines log of every step and score");
-  cmd->add_flag("--resume", a->resume, "Go on from --checkpoint (same settings)");
+  add_run_options(cmd, a->run, "JSON-lines log of every step and score");
   add_seed_option(cmd, o.seed, "Seed of the network and the data", o.seed);
-  cmd->add_option("--device", a->device,
-                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
-  cmd->add_flag("--json", a->json_out, "Print JSON instead of text");
-  cmd->add_flag("--quiet", a->quiet, "No progress bar");
-  cmd->add_flag("--force", a->force, "Replace existing output and checkpoint files");
   cmd->callback([a, cmd] {
-    apply_config_file(cmd, a->config);
+    apply_config_file(cmd, a->run.config);
     run_restore_train(*a);
   });
 }

@@ -775,18 +775,7 @@ void CoTrainer::save_checkpoint(const std::filesystem::path& path,
 
 void CoTrainer::load_checkpoint(const std::filesystem::path& path) {
   const nets::SafetensorsFile file = nets::read_safetensors(path);
-  std::string differ;
-  for (const auto& [key, value] : options_metadata()) {
-    const auto it = file.metadata.find(key);
-    if (it == file.metadata.end() || it->second != value) {
-      differ += differ.empty() ? "" : ", ";
-      differ += key + " (checkpoint ";
-      differ += it == file.metadata.end() ? std::string("none") : it->second;
-      differ += ", now " + value + ")";
-    }
-  }
-  require(differ.empty(), path.string() + " was made with other settings: " + differ,
-          "resume with the checkpoint's settings, or start a new run");
+  detail::require_same_settings("cotrain", path, file.metadata, options_metadata());
   impl_->prepare_faces();  // the centres first: the checkpoint's head replaces them
   nets::load_checkpoint(path, *impl_->model, impl_->adam.get());
 }

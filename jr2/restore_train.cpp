@@ -484,18 +484,7 @@ void RestoreTrainer::save_checkpoint(const std::filesystem::path& path,
 
 void RestoreTrainer::load_checkpoint(const std::filesystem::path& path) {
   const nets::SafetensorsFile file = nets::read_safetensors(path);
-  std::string differ;
-  for (const auto& [key, value] : options_metadata()) {
-    const auto it = file.metadata.find(key);
-    if (it == file.metadata.end() || it->second != value) {
-      differ += differ.empty() ? "" : ", ";
-      differ += key + " (checkpoint ";
-      differ += it == file.metadata.end() ? std::string("none") : it->second;
-      differ += ", now " + value + ")";
-    }
-  }
-  require(differ.empty(), path.string() + " was made with other settings: " + differ,
-          "resume with the checkpoint's settings, or start a new run");
+  detail::require_same_settings("restore-train", path, file.metadata, options_metadata());
   nets::load_checkpoint(path, impl_->net, &impl_->adam);
 }
 

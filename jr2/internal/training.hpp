@@ -6,10 +6,13 @@
 #include <vkjr2/kernels/elementwise.hpp>
 #include <vkjr2/kernels/reduce.hpp>
 #include <vkjr2/nets/autograd.hpp>
+#include <vkjr2/runtime/error.hpp>
 
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
+#include <map>
 #include <string>
 #include <utility>
 #include <vector>
@@ -26,6 +29,28 @@ inline std::uint64_t mix(std::uint64_t a, std::uint64_t b) {
 using Clock = std::chrono::steady_clock;
 inline double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
+}
+
+// A resume needs the checkpoint's settings: throws InvalidArgument (op)
+// naming every key of `now` whose value the checkpoint's metadata lacks or
+// holds otherwise.
+inline void require_same_settings(const char* op, const std::filesystem::path& path,
+                                  const std::map<std::string, std::string>& saved,
+                                  const std::map<std::string, std::string>& now) {
+  std::string differ;
+  for (const auto& [key, value] : now) {
+    const auto it = saved.find(key);
+    if (it == saved.end() || it->second != value) {
+      differ += differ.empty() ? "" : ", ";
+      differ += key + " (checkpoint ";
+      differ += it == saved.end() ? std::string("none") : it->second;
+      differ += ", now " + value + ")";
+    }
+  }
+  if (!differ.empty()) {
+    throw InvalidArgument(op, path.string() + " was made with other settings: " + differ,
+                          "resume with the checkpoint's settings, or start a new run");
+  }
 }
 
 // The global L2 norm of the parameters' gradients, and clipping to a norm.
