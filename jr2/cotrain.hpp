@@ -64,7 +64,7 @@ unsigned layer_group_of(const std::string& parameter, int levels);
 
 struct CoTrainOptions {
   CoTrainOrder order = CoTrainOrder::restore_first;
-  float lambda = 1000.f;         // weight of the self-distillation L1 (0: fine-tune)
+  float lambda = 10.f;  // weight of the self-distillation L1 (0: fine-tune; docs/jr2.md §4)
   unsigned layers = kAllLayers;  // the student's trainable layer groups
   int window = 128;              // the restored face window, window² pixels (multiple of 2^levels)
   int jitter = 8;                // the window's centre moves up to ±jitter pixels

@@ -186,7 +186,7 @@ def main(argv):
                    help="results.json of vkjr2 eval (repeatable: the rows are merged)")
     p.add_argument("--out", required=True, help="the markdown report")
     p.add_argument("--plot", help="the λ plot (SVG)")
-    p.add_argument("--lambda-main", type=float, default=1000, help="λ of restore_first")
+    p.add_argument("--lambda-main", type=float, default=10, help="λ of restore_first")
     a = p.parse_args(argv)
     rows = {}
     strengths = []
@@ -211,8 +211,8 @@ def main(argv):
         return [(label, method_name(run)) for label, run in pairs]
 
     out += table("Co-training", lab(MAIN), rows, strengths)
-    lambdas = [(0.0, "finetune"), (10.0, "lambda_10"), (30.0, "lambda_30"),
-               (100.0, "lambda_100"), (300.0, "lambda_300"), (a.lambda_main, "restore_first")]
+    lambdas = sorted([(0.0, "finetune"), (a.lambda_main, "restore_first"), (30.0, "lambda_30"),
+                      (100.0, "lambda_100"), (300.0, "lambda_300"), (1000.0, "lambda_1000")])
     out += table("λ sweep", [(f"λ = {lam:g}", method_name(run)) for lam, run in lambdas],
                  rows, strengths)
     out += table("Trainable layers", [(f"{g}", method_name(run)) for g, run in LAYERS],
@@ -225,8 +225,8 @@ def main(argv):
     held = ["### Held-out clips of the training split (the runs' last scores)", "",
             "| run | steps | rank-1 student / teacher / degraded (%) | genuine cosine "
             "student / teacher | PSNR student / teacher / degraded (dB) |", "|---|---|---|---|---|"]
-    runs = ["finetune", "restore_first", "align_first", "lambda_10", "lambda_30", "lambda_100",
-            "lambda_300", "layers_early", "layers_middle", "layers_late", "unpaired"]
+    runs = ["finetune", "restore_first", "align_first", "lambda_30", "lambda_100", "lambda_300",
+            "lambda_1000", "layers_early", "layers_middle", "layers_late", "unpaired"]
     n_held = 0
     for run in runs:
         j = last_heldout(a.run_dir, run)
