@@ -38,9 +38,7 @@ safetensors files are written by the small function below.
 """
 
 import argparse
-import json
 import math
-import struct
 import sys
 from pathlib import Path
 
@@ -48,7 +46,12 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
-DTYPES = {"F32": np.dtype("<f4"), "I32": np.dtype("<i4")}
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import restorer_torch  # noqa: E402  (the folder's safetensors writer and entry point)
+
+CliError = restorer_torch.CliError
+write_safetensors = restorer_torch.write_safetensors
+
 OPTIONS = {"m": 0.4, "h": 0.333, "s": 64.0, "t_alpha": 0.01, "eps": 1e-3}
 BATCH, DIM, CLASSES, CALLS = 6, 16, 5, 3
 # Norms of each batch's embeddings (shuffled per batch): with the running
@@ -59,30 +62,6 @@ NORMS = (1.5, 8.0, 14.0, 21.0, 40.0, 120.0)
 # every scaler within 0.09 of 0 for these norms (and any norm <= 100 within
 # 0.27): no clip. A trained backbone's statistics are tighter.
 START_MEAN, START_STD = 18.0, 5.0
-
-
-class CliError(Exception):
-    """A user-facing error: what went wrong and how to fix it."""
-
-
-def write_safetensors(path, tensors, metadata):
-    """Writes {name: array} (float32/int32) in sorted-name order with string metadata."""
-    names = {v: k for k, v in DTYPES.items()}
-    header, chunks, offset = {}, [], 0
-    for name in sorted(tensors):
-        arr = np.ascontiguousarray(tensors[name])
-        arr = arr.astype(arr.dtype.newbyteorder("<"), copy=False)
-        if arr.dtype not in names:
-            raise ValueError(f"tensor {name!r}: unsupported dtype {arr.dtype}")
-        raw = arr.tobytes()
-        header[name] = {"dtype": names[arr.dtype], "shape": list(arr.shape),
-                        "data_offsets": [offset, offset + len(raw)]}
-        chunks.append(raw)
-        offset += len(raw)
-    header["__metadata__"] = {str(k): str(v) for k, v in metadata.items()}
-    text = json.dumps(header, separators=(",", ":")).encode("utf-8")
-    text += b" " * (-len(text) % 8)
-    Path(path).write_bytes(struct.pack("<Q", len(text)) + text + b"".join(chunks))
 
 
 class AdaFaceHead:
@@ -261,14 +240,8 @@ def build_parser():
 
 
 def main(argv=None):
-    """Entry point: parses arguments, runs the command, reports CliError as 'error: ...'."""
-    args = build_parser().parse_args(argv)
-    try:
-        args.func(args)
-    except CliError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    return 0
+    """Entry point."""
+    return restorer_torch.run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -248,14 +248,8 @@ def build_parser():
 
 
 def main(argv=None):
-    """Entry point: parses arguments, runs the command, reports CliError as 'error: ...'."""
-    args = build_parser().parse_args(argv)
-    try:
-        args.func(args)
-    except CliError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    return 0
+    """Entry point."""
+    return restorer_torch.run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -53,7 +53,6 @@ import argparse
 import hashlib
 import json
 import os
-import struct
 import sys
 from pathlib import Path
 
@@ -61,12 +60,17 @@ import numpy as np
 import torch
 import torch.nn.functional as F
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import restorer_torch  # noqa: E402  (the folder's safetensors writer and entry point)
+
+CliError = restorer_torch.CliError
+write_safetensors = restorer_torch.write_safetensors
+
 MANIFEST = "face_recognition_model-weights_manifest.json"
 MEAN_RGB = (122.782, 117.001, 104.298)
 INPUT_SIZE = 150
 GRAIN = 2  # grey levels of per-pixel noise in the fixture images
 DESCRIPTOR_SIZE = 128
-DTYPES = {"F32": np.dtype("<f4"), "U8": np.dtype("u1"), "I32": np.dtype("<i4")}
 # (name, input channels, output channels, down) in network order.
 BLOCKS = [("conv32_1", 32, 32, False), ("conv32_2", 32, 32, False), ("conv32_3", 32, 32, False),
           ("conv64_down", 32, 64, True), ("conv64_1", 64, 64, False),
@@ -77,35 +81,7 @@ BLOCKS = [("conv32_1", 32, 32, False), ("conv32_2", 32, 32, False), ("conv32_3",
           ("conv256_down_out", 256, 256, True)]
 
 
-class CliError(Exception):
-    """A user-facing error: what went wrong and how to fix it."""
-
-
 # ----------------------------------------------------------------- safetensors
-
-def write_safetensors(path, tensors, metadata):
-    """Writes {name: array} (float32/uint8/int32) with string metadata.
-
-    Tensors are stored by element size descending, then name (as the reference
-    writer does), so that every tensor is aligned to its element size.
-    """
-    names = {v: k for k, v in DTYPES.items()}
-    header, chunks, offset = {}, [], 0
-    for name in sorted(tensors, key=lambda n: (-tensors[n].dtype.itemsize, n)):
-        arr = np.ascontiguousarray(tensors[name])
-        arr = arr.astype(arr.dtype.newbyteorder("<"), copy=False)
-        if arr.dtype not in names:
-            raise ValueError(f"tensor {name!r}: unsupported dtype {arr.dtype}")
-        raw = arr.tobytes()
-        header[name] = {"dtype": names[arr.dtype], "shape": list(arr.shape),
-                        "data_offsets": [offset, offset + len(raw)]}
-        chunks.append(raw)
-        offset += len(raw)
-    header["__metadata__"] = {str(k): str(v) for k, v in metadata.items()}
-    text = json.dumps(header, separators=(",", ":")).encode("utf-8")
-    text += b" " * (-len(text) % 8)
-    Path(path).write_bytes(struct.pack("<Q", len(text)) + text + b"".join(chunks))
-
 
 # --------------------------------------------------------------------- weights
 
@@ -361,14 +337,8 @@ def build_parser():
 
 
 def main(argv=None):
-    """Entry point: parses arguments, runs the command, reports CliError as 'error: ...'."""
-    args = build_parser().parse_args(argv)
-    try:
-        args.func(args)
-    except CliError as e:
-        print(f"error: {e}", file=sys.stderr)
-        return 2
-    return 0
+    """Entry point."""
+    return restorer_torch.run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":

@@ -51,7 +51,8 @@ from torch import nn
 
 NETWORK = "vkjr2.restorer"
 FORMAT = "vkjr2-checkpoint-1"
-DTYPES = {"F32": np.dtype("<f4"), "U32": np.dtype("<u4"), "I32": np.dtype("<i4")}
+DTYPES = {"F32": np.dtype("<f4"), "U32": np.dtype("<u4"), "I32": np.dtype("<i4"),
+          "U8": np.dtype("u1")}
 CHARBONNIER_EPS = 1e-3
 ADAM_LR = 1e-3
 
@@ -97,10 +98,15 @@ def read_safetensors(path):
 
 
 def write_safetensors(path, tensors, metadata):
-    """Writes {name: array} (float32/uint32/int32) in sorted-name order with string metadata."""
+    """Writes {name: array} (float32/uint32/int32/uint8) with string metadata.
+
+    Tensors are stored by element size descending, then name (as the reference
+    writer does), so that every tensor is aligned to its element size. The
+    other tools of this folder write their fixtures with it too.
+    """
     names = {v: k for k, v in DTYPES.items()}
     header, chunks, offset = {}, [], 0
-    for name in sorted(tensors):
+    for name in sorted(tensors, key=lambda n: (-np.asarray(tensors[n]).dtype.itemsize, n)):
         arr = np.ascontiguousarray(tensors[name])
         arr = arr.astype(arr.dtype.newbyteorder("<"), copy=False)
         if arr.dtype not in names:
@@ -392,15 +398,22 @@ def build_parser():
     return parser
 
 
-def main(argv=None):
-    """Entry point: parses arguments, runs the command, reports CliError as 'error: ...'."""
-    args = build_parser().parse_args(argv)
+def run_main(parser, argv=None):
+    """Parses arguments, runs the command, reports CliError as 'error: ...' (exit 2).
+
+    The entry point of every tool of this folder."""
+    args = parser.parse_args(argv)
     try:
         args.func(args)
     except CliError as e:
         print(f"error: {e}", file=sys.stderr)
         return 2
     return 0
+
+
+def main(argv=None):
+    """Entry point."""
+    return run_main(build_parser(), argv)
 
 
 if __name__ == "__main__":
