@@ -52,6 +52,7 @@
 #include "cli/log.hpp"
 #include "cli/run.hpp"
 #include "harness.hpp"
+#include "torch_peer.hpp"
 
 #ifndef VKJR2_SOURCE_DIR
 #define VKJR2_SOURCE_DIR "."
@@ -92,12 +93,6 @@ std::vector<float> uniform(std::int64_t n, std::uint32_t seed) {
   std::vector<float> v(static_cast<std::size_t>(n));
   for (float& x : v) x = u(rng);
   return v;
-}
-
-std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
 }
 
 double mib(std::uint64_t bytes) { return double(bytes) / (1024.0 * 1024.0); }
@@ -143,76 +138,19 @@ std::string csv(const std::vector<float>& v) {
   return s;
 }
 
-// The PyTorch peer: tools/cotrain_torch.py bench times the same step's stages and prints JSON.
-struct TorchPeer {
-  bool available = false;
-  std::string reason;  // why not, when not available
-  std::string command_line;
-
-  explicit TorchPeer(const BenchCotrainArgs& a) {
-    if (!a.torch) {
-      reason = "skipped (--no-torch)";
-      return;
-    }
-    if (::access(a.python.c_str(), X_OK) != 0 ||
-        std::system((shell_quote(a.python) + " -c 'import torch' > /dev/null 2>&1").c_str()) != 0) {
-      reason = "not available (install python3-torch)";
-      return;
-    }
-    if (!fs::exists(a.torch_script)) {
-      reason = "not available (" + a.torch_script + " not found; pass --torch-script PATH)";
-      return;
-    }
-    available = true;
-  }
-
-  json run(const BenchCotrainArgs& a, const std::vector<float>& thetas) {
-    const std::string shown_args =
-        " bench --batch " + std::to_string(a.batch) + " --window " + std::to_string(a.window) +
-        " --classes " + std::to_string(a.classes) + " --lambda " + std::to_string(a.lambda) +
-        " --threads " + std::to_string(a.threads) + " --repeat " + std::to_string(a.repeat) +
-        " --seed " + std::to_string(a.seed) + " --restorer ";
-    const std::string args = shown_args + shell_quote(a.restorer) + " --thetas " + csv(thetas);
-    command_line = a.python + " " + a.torch_script + shown_args + a.restorer + " --thetas ...";
-    std::fprintf(stderr, "bench cotrain: %s\n", command_line.c_str());
-    std::fflush(stdout);  // the child must not inherit unwritten output
-    std::fflush(stderr);
-    FILE* pipe =
-        ::popen((shell_quote(a.python) + " " + shell_quote(a.torch_script) + args).c_str(), "r");
-    if (pipe == nullptr) {
-      throw Error("bench cotrain", "cannot start " + a.python, "check it, or pass --no-torch");
-    }
-    json result;
-    std::string last;
-    char* line = nullptr;
-    std::size_t cap = 0;
-    ssize_t n = 0;
-    while ((n = ::getline(&line, &cap, pipe)) > 0) {
-      std::string text(line, std::size_t(n));
-      while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-      json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
-      if (j.is_object() && j.contains("stages") && j.contains("step_s")) {
-        result = std::move(j);
-      } else if (!text.empty()) {
-        std::fprintf(stderr, "  | %s\n", text.c_str());
-        last = text;
-      }
-    }
-    std::free(line);
-    const int status = ::pclose(pipe);
-    if (status != 0 || !result.is_object()) {
-      const int code = status >= 0 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      throw Error("bench cotrain",
-                  "the PyTorch peer failed (exit code " + std::to_string(code) +
-                      (result.is_object() ? "" : ", no JSON result") +
-                      (last.empty() ? "" : ": " + last) + ")",
-                  "run `" + command_line +
-                      "` alone (with --thetas left out) to see why, or pass "
-                      "--no-torch");
-    }
-    return result;
-  }
-};
+// The PyTorch peer: tools/cotrain_torch.py bench times the same step's
+// stages (with our thetas) and prints JSON.
+nlohmann::json run_torch(TorchPeer& peer, const BenchCotrainArgs& a,
+                         const std::vector<float>& thetas) {
+  const std::string shown_args =
+      " bench --batch " + std::to_string(a.batch) + " --window " + std::to_string(a.window) +
+      " --classes " + std::to_string(a.classes) + " --lambda " + std::to_string(a.lambda) +
+      " --threads " + std::to_string(a.threads) + " --repeat " + std::to_string(a.repeat) +
+      " --seed " + std::to_string(a.seed) + " --restorer ";
+  return peer.run("bench cotrain",
+                  shown_args + shell_quote(a.restorer) + " --thetas " + csv(thetas),
+                  shown_args + a.restorer + " --thetas ...", {"stages", "step_s"});
+}
 
 // 255 · clamp(x, 0, 1) = 255 · (relu(x) − relu(x − 1)), as CoTrainer computes it.
 Var to_pixels_var(nets::Tape& t, const Var& x) {
@@ -323,7 +261,7 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
   if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
   if (a.restorer.empty()) a.restorer = jr2::default_restorer_path().string();
   check_input_file(a.restorer, "--restorer");
-  TorchPeer torch(a);
+  TorchPeer torch(a.torch, a.python, a.torch_script);
   const Device device = open_device(a.device);
   const std::vector<float> thetas = make_thetas(a.batch, a.window, a.seed);
 
@@ -378,7 +316,7 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
   json torch_result;
   if (torch.available) {
     std::fprintf(stderr, "bench cotrain: PyTorch peer, the same step ...\n");
-    torch_result = torch.run(a, thetas);
+    torch_result = run_torch(torch, a, thetas);
   }
 
   std::array<double, kStageKeys.size()> ours{}, theirs{};

@@ -29,6 +29,7 @@
 #include "cli/log.hpp"
 #include "cli/run.hpp"
 #include "harness.hpp"
+#include "torch_peer.hpp"
 
 #ifndef VKJR2_SOURCE_DIR
 #define VKJR2_SOURCE_DIR "."
@@ -67,83 +68,18 @@ std::string join(const std::vector<int>& v) {
   return s;
 }
 
-std::string shell_quote(const std::string& s) {
-  std::string q = "'";
-  for (char c : s) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
-  return q + "'";
-}
-
 double mib(std::uint64_t bytes) { return double(bytes) / (1024.0 * 1024.0); }
 
 // The PyTorch peer: tools/restorer_torch.py bench times inference and one
 // training step of the same network at one batch and size, and prints JSON.
-struct TorchPeer {
-  bool available = false;
-  std::string reason;  // why not, when not available
-  std::string command_line;
-
-  explicit TorchPeer(const BenchRestoreArgs& a) {
-    if (!a.torch) {
-      reason = "skipped (--no-torch)";
-      return;
-    }
-    if (::access(a.python.c_str(), X_OK) != 0 ||
-        std::system((shell_quote(a.python) + " -c 'import torch' > /dev/null 2>&1").c_str()) != 0) {
-      reason = "not available (install python3-torch)";
-      return;
-    }
-    if (!fs::exists(a.torch_script)) {
-      reason = "not available (" + a.torch_script + " not found; pass --torch-script PATH)";
-      return;
-    }
-    available = true;
-  }
-
-  // Runs the script at `size`² and `batch`; returns its JSON.
-  json run(const BenchRestoreArgs& a, int size, int batch) {
-    const std::string args =
-        " bench --frames " + std::to_string(a.frames) + " --width " + std::to_string(a.width) +
-        " --enc " + a.enc + " --middle " + std::to_string(a.middle) + " --dec " + a.dec +
-        " --size " + std::to_string(size) + " --batch " + std::to_string(batch) + " --threads " +
-        std::to_string(a.threads) + " --repeat " + std::to_string(a.repeat);
-    command_line = a.python + " " + a.torch_script + args;
-    std::fprintf(stderr, "bench restore: %s\n", command_line.c_str());
-    std::fflush(stdout);  // the child must not inherit unwritten output
-    std::fflush(stderr);
-    FILE* pipe =
-        ::popen((shell_quote(a.python) + " " + shell_quote(a.torch_script) + args).c_str(), "r");
-    if (pipe == nullptr) {
-      throw Error("bench restore", "cannot start " + a.python, "check it, or pass --no-torch");
-    }
-    json result;
-    std::string last;
-    char* line = nullptr;
-    std::size_t cap = 0;
-    ssize_t n = 0;
-    while ((n = ::getline(&line, &cap, pipe)) > 0) {
-      std::string text(line, std::size_t(n));
-      while (!text.empty() && (text.back() == '\n' || text.back() == '\r')) text.pop_back();
-      json j = json::parse(text, nullptr, /*allow_exceptions=*/false);
-      if (j.is_object() && j.contains("infer_s") && j.contains("train_step_s")) {
-        result = std::move(j);
-      } else if (!text.empty()) {
-        std::fprintf(stderr, "  | %s\n", text.c_str());
-        last = text;
-      }
-    }
-    std::free(line);
-    const int status = ::pclose(pipe);
-    if (status != 0 || !result.is_object()) {
-      const int code = status >= 0 && WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-      throw Error("bench restore",
-                  "the PyTorch peer failed (exit code " + std::to_string(code) +
-                      (result.is_object() ? "" : ", no JSON result") +
-                      (last.empty() ? "" : ": " + last) + ")",
-                  "run `" + command_line + "` alone to see why, or pass --no-torch");
-    }
-    return result;
-  }
-};
+nlohmann::json run_torch(TorchPeer& peer, const BenchRestoreArgs& a, int size, int batch) {
+  const std::string args =
+      " bench --frames " + std::to_string(a.frames) + " --width " + std::to_string(a.width) +
+      " --enc " + a.enc + " --middle " + std::to_string(a.middle) + " --dec " + a.dec + " --size " +
+      std::to_string(size) + " --batch " + std::to_string(batch) + " --threads " +
+      std::to_string(a.threads) + " --repeat " + std::to_string(a.repeat);
+  return peer.run("bench restore", args, args, {"infer_s", "train_step_s"});
+}
 
 std::string met(bool ok) { return ok ? "met" : "not met"; }
 
@@ -174,7 +110,7 @@ void run_bench_restore(BenchRestoreArgs& a) {
                            ", so that both peers run the same shapes unpadded");
     }
   }
-  TorchPeer torch(a);
+  TorchPeer torch(a.torch, a.python, a.torch_script);
   const Device device = open_device(a.device);
   const std::int64_t t3 = 3LL * config.frames;
   const double infer_flops = config.flops(a.size, a.size);
@@ -235,10 +171,10 @@ void run_bench_restore(BenchRestoreArgs& a) {
   json torch_infer, torch_train;
   if (torch.available) {
     std::fprintf(stderr, "bench restore: PyTorch peer, inference %d² batch 1 ...\n", a.size);
-    torch_infer = torch.run(a, a.size, 1);
+    torch_infer = run_torch(torch, a, a.size, 1);
     std::fprintf(stderr, "bench restore: PyTorch peer, training step %d² batch %d ...\n",
                  a.train_size, a.batch);
-    torch_train = torch.run(a, a.train_size, a.batch);
+    torch_train = run_torch(torch, a, a.train_size, a.batch);
   }
   const double torch_infer_s = torch.available ? torch_infer.at("infer_s").get<double>() : 0;
   const double torch_train_s = torch.available ? torch_train.at("train_step_s").get<double>() : 0;
