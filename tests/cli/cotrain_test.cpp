@@ -126,6 +126,28 @@ TEST(CliCotrain, AlignFirstModelsRestoreTheAlignedCrop) {
   EXPECT_NE(af["psnr_db"]["value"], j["rows"][0]["psnr_db"]["value"]);  // crops, not frames
 }
 
+// The benchmark of a co-training step runs and writes its JSON (the peer
+// left out: timings are bench/'s business, not a test's).
+TEST(CliBenchCotrain, TimesEveryStageAndTheStep) {
+  TempDir tmp("bench_cotrain");
+  const fs::path out = tmp.path / "bench.json";
+  auto r = run_cli("bench cotrain --no-torch --batch 2 --window 64 --repeat 1 --json-file " +
+                   out.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(out);
+  const json j = json::parse(f, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  const json& ours = j["vkjr2"];
+  EXPECT_GT(ours["step_s"].get<double>(), 0.0);
+  ASSERT_TRUE(ours["stages_s"].is_object()) << ours.dump();
+  EXPECT_GE(ours["stages_s"].size(), 5u);
+  for (const auto& [stage, seconds] : ours["stages_s"].items()) {
+    EXPECT_GT(seconds.get<double>(), 0.0) << stage;
+  }
+  r = run_cli("bench cotrain --window 60 --no-torch");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
 TEST(CliCotrain, BadOptionsAreUsageErrors) {
   TempDir tmp("cli_cotrain_bad");
   const fs::path out = tmp.path / "co.safetensors", missing = tmp.path / "none.json";
