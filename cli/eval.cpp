@@ -7,7 +7,6 @@
 #include <vkjr2/jr2/restorer.hpp>
 #include <vkjr2/nets/autograd.hpp>
 #include <vkjr2/nets/face_common.hpp>
-#include <vkjr2/nets/ops.hpp>
 #include <vkjr2/nets/safetensors.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
@@ -346,16 +345,11 @@ void run_eval(const EvalArgs& a) {
              jr2::restore_window(frames.size(), std::size_t(f), net.config().frames)) {
           window.push_back(raw(i));
         }
-        const Tensor stacked = jr2::stack_frames(s, window);
-        const std::int64_t c = nets::kRecognitionInputSize;
-        const auto theta = jr2::crop_theta(sim, stacked.shape()[3], stacked.shape()[2], c, c);
+        const int c = int(nets::kRecognitionInputSize);
         nets::Tape tape(s, false);
-        const nets::Var grid = nets::affine_grid(
-            tape, nets::Var(Tensor::from(device, Shape{1, 2, 3}, theta)), c, c, false);
-        const nets::Var in = nets::grid_sample(tape, nets::Var(stacked), grid,
-                                               {kernels::SamplePadding::zeros, false});
+        const nets::Var in = jr2::align_crop(tape, nets::Var(jr2::stack_frames(s, window)), sim, c);
         Tensor crop = jr2::to_pixels(s, net.forward(tape, in).value());
-        const Tensor clean_crop = jr2::align_crop(tape, nets::Var(clean), sim, int(c)).value();
+        const Tensor clean_crop = jr2::align_crop(tape, nets::Var(clean), sim, c).value();
         crop_quality.push_back(jr2::clip_quality(s, std::span(&crop, 1), clean_crop));
         return crop;
       };
@@ -375,8 +369,10 @@ void run_eval(const EvalArgs& a) {
                         p.file + " has frames of " + sampled.front().shape().str(),
                     "make the benchmark again (vkjr2 dataset make)");
       }
-      jr2::ClipQuality quality = jr2::clip_quality(stream, sampled, clean);
-      if (method_def.align_first) {
+      jr2::ClipQuality quality;
+      if (!method_def.align_first) {
+        quality = jr2::clip_quality(stream, sampled, clean);
+      } else {
         quality = {std::nan(""), std::nan("")};  // no face tracked: no crop restored
         if (!crop_quality.empty()) {
           quality = {0, 0};

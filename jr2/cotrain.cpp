@@ -189,11 +189,11 @@ struct CoTrainer::Impl {
   std::vector<float> centres;  // [classes, 128] clean centres (the fixed yardstick)
   bool prepared = false;
   // The pool: clip k in slot k % pool.
-  Tensor pool_frames, pool_clean;
+  Tensor pool_frames;
   std::vector<nets::FaceBox> pool_box;
   std::vector<std::int32_t> pool_label;
   std::int64_t pool_first = 0, pool_end = 0;
-  Tensor batch_frames, batch_clean, labels_dev;
+  Tensor batch_frames, labels_dev;
   double pending_sim_seconds = 0;
   // Held-out clips.
   Tensor val_frames, val_clean;
@@ -277,10 +277,10 @@ struct CoTrainer::Impl {
     for (std::size_t i = 0; i < sp.size(); ++i) {
       const Tensor copy = Tensor::empty(d, tp[i].second.shape());
       k::copy(stream, tp[i].second.value(), copy);
-      stream.run();
       sp[i].second.set_value(copy);
       sp[i].second.set_requires_grad((layer_group_of(sp[i].first, net.levels()) & o.layers) != 0);
     }
+    stream.run();
     auto head = std::make_unique<nets::AdaFaceHead>(
         d, int(nets::FaceRecognitionNet::kDescriptorSize), int(identities.size()),
         std::uint32_t(mix(o.seed, 0x68656164)), o.adaface);
@@ -297,11 +297,9 @@ struct CoTrainer::Impl {
     schedule.total_steps = std::uint32_t(o.steps);
     const std::int64_t w = o.window;
     pool_frames = Tensor::empty(d, Shape{o.pool, t3, w, w});
-    if (paired) pool_clean = Tensor::empty(d, Shape{o.pool, 3, w, w});
     pool_box.resize(std::size_t(o.pool));
     pool_label.resize(std::size_t(o.pool));
     batch_frames = Tensor::empty(d, Shape{o.batch, t3, w, w});
-    if (paired) batch_clean = Tensor::empty(d, Shape{o.batch, 3, w, w});
     labels_dev = Tensor::empty(d, Shape{o.batch}, DType::i32);
   }
 
@@ -340,22 +338,13 @@ struct CoTrainer::Impl {
   // Descriptors [n, 128] of frames [n, 3, H, W] (pixels 0..255), aligned by
   // the landmarks found in each frame within its box.
   std::vector<float> describe(const Tensor& pixels, std::span<const nets::FaceBox> boxes) {
-    const std::int64_t n = pixels.shape()[0], h = pixels.shape()[2], w = pixels.shape()[3];
-    std::vector<float> theta;
-    for (std::int64_t i = 0; i < n; ++i) {
-      const Tensor one = pixels.view(Shape{1, 3, h, w}, i * 3 * h * w);
-      const auto lm =
-          analyzer.landmark_net().landmarks_in_image(stream, one, boxes[std::size_t(i)]);
-      const auto th = theta_for(lm, w, h);
-      theta.insert(theta.end(), th.begin(), th.end());
-    }
-    nets::Tape t(stream, false);
-    const Var grid =
-        nets::affine_grid(t, Var(Tensor::from(device, Shape{n, 2, 3}, theta)), kCrop, kCrop, false);
-    const Var crops = nets::grid_sample(t, Var(pixels), grid, {k::SamplePadding::zeros, false});
-    const Var d = analyzer.recognition_net().forward(t, crops);
+    return describe_crops(align_frames(pixels, thetas(pixels, boxes)));
+  }
+  // Descriptors of 150² crops [n, 3, 150, 150] (pixels 0..255).
+  std::vector<float> describe_crops(const Tensor& crops) {
+    const Tensor d = analyzer.recognition_net().describe(stream, crops);
     stream.run();
-    return d.value().download();
+    return d.download();
   }
 
   void prepare_faces() {
@@ -444,9 +433,9 @@ struct CoTrainer::Impl {
     }
     const std::int64_t slot = kk % o.pool, w = o.window;
     const Tensor frames = pool_frames.view(Shape{1, t3, w, w}, slot * t3 * w * w);
-    const Tensor clean = paired ? pool_clean.view(Shape{1, 3, w, w}, slot * 3 * w * w) : Tensor();
+    // Training needs no clean window: the loss is recognition and distillation.
     pool_box[std::size_t(slot)] =
-        cut(face_clip, face_box, f, paired, d, sim_seed, first, dx, dy, frames, clean);
+        cut(face_clip, face_box, f, paired, d, sim_seed, first, dx, dy, frames, Tensor());
     pool_label[std::size_t(slot)] = labels[f];
   }
 
@@ -467,16 +456,16 @@ struct CoTrainer::Impl {
 
   // ---- the two orders -----------------------------------------------------------
 
-  // theta [n, 2, 3] of the 150² crops of frames' reference frames (pixels
-  // 0..255 [n, 3, W, W] given), located within `boxes`.
+  // theta [n, 2, 3] of the 150² crops of frames [n, 3, H, W] (pixels
+  // 0..255): the 68 landmarks found in each within its box.
   Tensor thetas(const Tensor& pixels, std::span<const nets::FaceBox> boxes) {
-    const std::int64_t n = pixels.shape()[0], w = pixels.shape()[3];
+    const std::int64_t n = pixels.shape()[0], h = pixels.shape()[2], w = pixels.shape()[3];
     std::vector<float> theta;
     for (std::int64_t i = 0; i < n; ++i) {
-      const Tensor one = pixels.view(Shape{1, 3, w, w}, i * 3 * w * w);
+      const Tensor one = pixels.view(Shape{1, 3, h, w}, i * 3 * h * w);
       const auto lm =
           analyzer.landmark_net().landmarks_in_image(stream, one, boxes[std::size_t(i)]);
-      const auto th = theta_for(lm, w, w);
+      const auto th = theta_for(lm, w, h);
       theta.insert(theta.end(), th.begin(), th.end());
     }
     return Tensor::from(device, Shape{n, 2, 3}, theta);
@@ -491,8 +480,9 @@ struct CoTrainer::Impl {
     return px;
   }
 
-  // Align-first: every frame of `frames` [n, 3T, W, W] warped by theta to
-  // [n, 3T, 150, 150] (0..1; no gradient: it is the student's input).
+  // Every channel of `frames` [n, C, H, W] warped by theta [n, 2, 3] to
+  // [n, C, 150, 150], no gradient (align-first's input, the recognizer's
+  // crops outside the training graph, aligned clean windows).
   Tensor align_frames(const Tensor& frames, const Tensor& theta) {
     nets::Tape t(stream, false);
     const Var grid = nets::affine_grid(t, Var(theta), kCrop, kCrop, false);
@@ -649,12 +639,7 @@ CoTrainEvalReport CoTrainer::evaluate() {
   if (o.order == CoTrainOrder::align_first) {
     theta = m.thetas(m.reference_pixels(m.val_frames), m.vbox);
     inputs = m.align_frames(m.val_frames, theta);
-    if (m.val_paired) {
-      nets::Tape t(m.stream, false);
-      const Var grid = nets::affine_grid(t, Var(theta), kCrop, kCrop, false);
-      clean =
-          nets::grid_sample(t, Var(m.val_clean), grid, {k::SamplePadding::zeros, false}).value();
-    }
+    if (m.val_paired) clean = m.align_frames(m.val_clean, theta);
   }
   const std::size_t classes = m.identities.size(), dim = 128;
   // One row: the restored (or degraded) frames [v, 3, c, c] in 0..1.
@@ -669,10 +654,7 @@ CoTrainEvalReport CoTrainer::evaluate() {
     if (o.order == CoTrainOrder::restore_first) {
       d = m.describe(px, m.vbox);
     } else {
-      nets::Tape t(m.stream, false);
-      const Var desc = m.analyzer.recognition_net().forward(t, Var(px));
-      m.stream.run();
-      d = desc.value().download();
+      d = m.describe_crops(px);
     }
     double hits = 0, genuine = 0;
     for (std::int64_t i = 0; i < v; ++i) {

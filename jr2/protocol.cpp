@@ -144,16 +144,24 @@ ProbeOutcome ProbePipeline::run(Stream& stream, int frame_count,
   }
   const auto t_embed = Clock::now();
   for (std::size_t a = 0; a < o.aligns.size() && !tracked_faces.empty(); ++a) {
-    if (o.aligned_crop) {  // align-first: the caller's crops of the tracked faces
-      const int size = int(nets::kRecognitionInputSize);
-      for (std::size_t k = 0; k < tracked_faces.size(); ++k) {
-        const Face& f = tracked_faces[k];
+    if (o.aligned_crop) {  // align-first: the caller's crops, described as one batch
+      const std::int64_t size = nets::kRecognitionInputSize, per_face = 3 * size * size;
+      const auto n = std::int64_t(tracked_faces.size());
+      const Tensor batch = Tensor::empty(stream.device(), Shape{n, 3, size, size});
+      for (std::int64_t k = 0; k < n; ++k) {
+        const Face& f = tracked_faces[std::size_t(k)];
         const std::vector<float> lm(f.landmarks.begin(), f.landmarks.end());
-        const Similarity s = fit_similarity(five_points(lm), canonical_points(size));
-        const Tensor crop = o.aligned_crop(stream, tracked_frames[k], s);
-        const Tensor d = analyzer_.recognition_net().describe(stream, crop);
-        stream.run();
-        out.descriptors[a].push_back(d.download());
+        const Similarity s = fit_similarity(five_points(lm), canonical_points(int(size)));
+        stream.copy(o.aligned_crop(stream, tracked_frames[std::size_t(k)], s),
+                    batch.view(Shape{1, 3, size, size}, k * per_face));
+      }
+      const Tensor d = analyzer_.recognition_net().describe(stream, batch);
+      stream.run();
+      const std::vector<float> all = d.download();
+      const std::size_t dim = all.size() / std::size_t(n);
+      for (std::size_t k = 0; k < std::size_t(n); ++k) {
+        out.descriptors[a].emplace_back(all.begin() + std::ptrdiff_t(k * dim),
+                                        all.begin() + std::ptrdiff_t((k + 1) * dim));
       }
       continue;
     }
