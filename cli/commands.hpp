@@ -21,6 +21,7 @@ void add_dataset(CLI::App& app);        // dataset.cpp: dataset make, dataset me
 void add_demo(CLI::App& app);           // demo.cpp: the turbulence-vs-recognition study
 void add_eval(CLI::App& app);           // eval.cpp: the JR² evaluation of a benchmark
 void add_cotrain(CLI::App& app);        // cotrain.cpp: JR² co-optimization
+void add_estimate(CLI::App& app);       // estimate.cpp: estimate, estimate-train
 
 // bench.cpp: `vkjr2 bench NAME ARGS...` runs NAME's program with ARGS (argv,
 // argc of them) in place of this process; returns 1 after printing the error

@@ -1,0 +1,420 @@
+// vkjr2 estimate / estimate-train: the turbulence strength (D/r0, r0) of a
+// video from its tilt alone (jr2/turbulence.hpp), and the calibration of that
+// estimate on simulated videos of known strength.
+#include <vkjr2/jr2/benchmark.hpp>
+#include <vkjr2/jr2/clip_set.hpp>
+#include <vkjr2/jr2/turbulence.hpp>
+#include <vkjr2/runtime/device.hpp>
+#include <vkjr2/runtime/error.hpp>
+
+#include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "checks.hpp"
+#include "cleanup.hpp"
+#include "commands.hpp"
+#include "log.hpp"
+#include "media.hpp"
+#include "progress.hpp"
+#include "sim_common.hpp"
+
+namespace vkjr2::cli {
+namespace {
+
+using json = nlohmann::ordered_json;
+
+// One video to estimate, with its true strength when it is known.
+struct Item {
+  std::string name, group;  // group: the benchmark strength, or "" for plain videos
+  std::filesystem::path video;
+  int clip = -1;     // index into a clip set instead of a video file
+  double truth = 0;  // 0: unknown
+};
+
+struct Common {
+  PathArgs path;
+  std::string benchmark, split, clips, device;
+  int max_frames = 30;
+  bool json_out = false, quiet = false;
+};
+
+void add_common(CLI::App* cmd, Common& c, const std::string& default_split) {
+  cmd->add_option("--preset", c.path.preset,
+                  "Optics of this preset (aperture, focal length, pixel pitch, wavelength)")
+      ->default_val("moderate")
+      ->check(CLI::IsMember(sim::preset_names()));
+  cmd->add_option("--config", c.path.config,
+                  "Optics from a simulator config file (JSON/YAML as `vkjr2 simulate`; its "
+                  "turbulence is ignored)");
+  cmd->add_option("--benchmark", c.benchmark,
+                  "A benchmark manifest (vkjr2 dataset make): its probe videos of --split, "
+                  "with their true D/r0");
+  c.split = default_split;
+  cmd->add_option("--split", c.split, "The benchmark split")
+      ->default_val(default_split)
+      ->check(CLI::IsMember({"val", "test"}));
+  cmd->add_option("--clips", c.clips,
+                  "A clip set (vkjr2 wave-clips): each clip with its true D/r0");
+  cmd->add_option("--frames", c.max_frames, "Frames read from each video (0: all)")
+      ->default_val(30)
+      ->check(integer_range(0, 100000));
+  cmd->add_option("--device", c.device,
+                  "Vulkan device index or name substring (else VKJR2_DEVICE)");
+  cmd->add_flag("--json", c.json_out, "Print JSON instead of text");
+  cmd->add_flag("--quiet", c.quiet, "No progress bar");
+}
+
+std::vector<Item> collect(const Common& c, const std::vector<std::string>& videos,
+                          jr2::ClipSet* set) {
+  std::vector<Item> items;
+  for (const std::string& v : videos) {
+    check_input_file(v, "VIDEO");
+    if (!is_video_path(v)) {
+      throw UsageError("VIDEO", v + " is not a video (by its extension)",
+                       "pass a video file (.avi, .mp4, .mov, .mkv, …)");
+    }
+    items.push_back({v, "", v, -1, 0});
+  }
+  if (!c.benchmark.empty()) {
+    check_input_file(c.benchmark, "--benchmark");
+    const jr2::Manifest m = jr2::read_manifest(c.benchmark);
+    const std::filesystem::path dir = std::filesystem::path(c.benchmark).parent_path();
+    for (const jr2::ProbeItem& p : m.probes) {
+      if (p.split != c.split) continue;
+      items.push_back({p.file, p.strength, dir / p.file, -1, p.d_over_r0});
+    }
+    if (items.empty()) {
+      throw UsageError("--split", c.benchmark + " has no probe of split " + c.split,
+                       "choose the other split");
+    }
+  }
+  if (!c.clips.empty()) {
+    check_input_file(c.clips, "--clips");
+    *set = jr2::load_clip_set(c.clips);
+    for (std::size_t i = 0; i < set->count(); ++i) {
+      items.push_back({"clip " + std::to_string(i) + " (" + set->sources[i] + ")",
+                       "clips",
+                       {},
+                       int(i),
+                       set->d_over_r0[i]});
+    }
+  }
+  if (items.empty()) {
+    throw UsageError("VIDEO", "nothing to estimate",
+                     "pass videos, --benchmark MANIFEST or --clips SET");
+  }
+  return items;
+}
+
+// Grey frames [T, 1, H, W] of an item on the device.
+Tensor load_frames(const Device& device, const Item& item, const jr2::ClipSet* set,
+                   int max_frames) {
+  if (item.clip >= 0) {
+    const std::size_t n = std::size_t(set->frames) * 3 * set->size * set->size;
+    const std::span<const float> rgb(set->degraded.data() + std::size_t(item.clip) * n, n);
+    const int t = max_frames > 0 ? std::min(max_frames, set->frames) : set->frames;
+    const auto grey = jr2::grey_frames(rgb.first(std::size_t(t) * 3 * set->size * set->size), t, 3,
+                                       set->size, set->size, 1.f);
+    return Tensor::from(device, Shape{t, 1, set->size, set->size}, grey);
+  }
+  std::vector<float> grey;
+  std::int64_t h = 0, w = 0;
+  QuietDecoders quiet;
+  const std::size_t t =
+      read_video(item.video, 1, std::size_t(max_frames), [&](std::size_t, const Image& img) {
+        if (h == 0) {
+          h = img.shape[0];
+          w = img.shape[1];
+        }
+        const std::size_t plane = std::size_t(h * w);
+        const std::size_t base = grey.size();
+        grey.resize(base + plane);
+        for (std::size_t p = 0; p < plane; ++p) {
+          const float* px = img.values.data() + 3 * p;
+          grey[base + p] = (px[0] + px[1] + px[2]) / (3.f * 255.f);
+        }
+      });
+  return Tensor::from(device, Shape{std::int64_t(t), 1, h, w}, grey);
+}
+
+struct Measured {
+  Item item;
+  jr2::TurbulenceEstimate estimate;
+};
+
+std::vector<Measured> measure_all(const Device& device, const std::vector<Item>& items,
+                                  const jr2::ClipSet* set, int max_frames,
+                                  const sim::Params& optics, const jr2::TurbulenceCalibration& cal,
+                                  bool quiet, const char* label) {
+  std::vector<Measured> out;
+  Progress bar(label, items.size(), quiet || items.size() < 2);
+  for (const Item& item : items) {
+    const Tensor frames = load_frames(device, item, set, max_frames);
+    Stream stream(device);
+    try {
+      out.push_back({item, jr2::estimate_turbulence(stream, frames, optics, cal)});
+    } catch (const InvalidArgument& e) {
+      throw Error("estimate", item.name + ": " + e.problem(), e.fix());
+    }
+    bar.update(out.size());
+  }
+  bar.done();
+  return out;
+}
+
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  const std::size_t n = v.size();
+  return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+// Relative errors of the estimates with a known truth, per group and overall.
+json error_summary(const std::vector<Measured>& results, bool raw) {
+  std::map<std::string, std::vector<double>> groups;
+  std::vector<std::string> order;
+  for (const Measured& m : results) {
+    if (m.item.truth <= 0) continue;
+    const double est = raw ? m.estimate.raw_d_over_r0 : m.estimate.d_over_r0;
+    const double err = est / m.item.truth - 1.0;
+    if (!groups.count(m.item.group)) order.push_back(m.item.group);
+    groups[m.item.group].push_back(err);
+    if (order.size() > 1 || m.item.group != "all") groups["all"].push_back(err);
+  }
+  if (groups.empty()) return json();
+  if (order.size() > 1) order.emplace_back("all");
+  json s = json::array();
+  for (const std::string& g : order) {
+    const std::vector<double>& e = groups[g];
+    std::vector<double> abs_err(e.size());
+    std::transform(e.begin(), e.end(), abs_err.begin(), [](double x) { return std::abs(x); });
+    const auto within =
+        std::count_if(abs_err.begin(), abs_err.end(), [](double x) { return x <= 0.25; });
+    s.push_back({{"group", g.empty() ? "videos" : g},
+                 {"videos", e.size()},
+                 {"median_abs_error", median(abs_err)},
+                 {"max_abs_error", *std::max_element(abs_err.begin(), abs_err.end())},
+                 {"median_error", median(e)},
+                 {"within_25_percent", double(within) / double(e.size())}});
+  }
+  return s;
+}
+
+json result_json(const Measured& m) {
+  json j = {{"video", m.item.name}};
+  if (!m.item.group.empty()) j["group"] = m.item.group;
+  j["d_over_r0"] = m.estimate.d_over_r0;
+  j["r0_m"] = m.estimate.r0_m;
+  j["raw_d_over_r0"] = m.estimate.raw_d_over_r0;
+  j["tilt_variance_px2"] = m.estimate.tilt.variance_px2;
+  j["tilt_lag1_covariance_px2"] = m.estimate.tilt.lag1_covariance_px2;
+  j["coverage"] = m.estimate.tilt.coverage;
+  j["frames"] = m.estimate.tilt.frames;
+  if (m.item.truth > 0) {
+    j["true_d_over_r0"] = m.item.truth;
+    j["error"] = m.estimate.d_over_r0 / m.item.truth - 1.0;
+  }
+  return j;
+}
+
+void print_summary(const json& summary, const char* what) {
+  if (summary.is_null()) return;
+  std::printf("%s against the true D/r0:\n", what);
+  std::printf("  %-10s %6s %12s %12s %12s %10s\n", "group", "videos", "median |err|", "max |err|",
+              "median err", "≤ 25 %");
+  for (const json& g : summary) {
+    std::printf("  %-10s %6d %11.1f%% %11.1f%% %+11.1f%% %9.0f%%\n",
+                g["group"].get<std::string>().c_str(), g["videos"].get<int>(),
+                100 * g["median_abs_error"].get<double>(), 100 * g["max_abs_error"].get<double>(),
+                100 * g["median_error"].get<double>(), 100 * g["within_25_percent"].get<double>());
+  }
+}
+
+sim::Params optics_of(const Common& c) { return params_from_args(c.path); }
+
+// ---- vkjr2 estimate ---------------------------------------------------------
+
+struct EstimateArgs {
+  Common c;
+  std::vector<std::string> videos;
+  std::string calibration, out;
+  bool raw = false, force = false;
+};
+
+void run_estimate(const EstimateArgs& a) {
+  const sim::Params optics = optics_of(a.c);
+  jr2::TurbulenceCalibration cal = jr2::TurbulenceCalibration::identity();
+  if (!a.raw) {
+    const std::filesystem::path cal_path = a.calibration.empty()
+                                               ? jr2::default_turbulence_calibration_path()
+                                               : std::filesystem::path(a.calibration);
+    check_input_file(cal_path, "--calibration");
+    cal = jr2::TurbulenceCalibration::load(cal_path);
+  }
+  if (!a.out.empty()) {
+    check_output_file(a.out, a.force, "--out");
+    check_extension(a.out, {".json"}, "--out");
+  }
+  jr2::ClipSet set;
+  const std::vector<Item> items = collect(a.c, a.videos, &set);
+  const Device device = open_device(a.c.device);
+  const auto results =
+      measure_all(device, items, &set, a.c.max_frames, optics, cal, a.c.quiet, "estimate");
+  json j = {
+      {"calibration", a.raw ? "none (raw)" : (a.calibration.empty() ? "shipped" : a.calibration)},
+      {"videos", json::array()}};
+  for (const Measured& m : results) j["videos"].push_back(result_json(m));
+  const json summary = error_summary(results, false);
+  if (!summary.is_null()) j["errors"] = summary;
+  if (!a.out.empty()) {
+    const std::string text = j.dump(2) + "\n";
+    write_file_atomic(a.out, std::as_bytes(std::span(text.data(), text.size())), "estimate --out");
+  }
+  if (a.c.json_out) {
+    std::printf("%s\n",
+                (items.size() == 1 && summary.is_null() ? j["videos"][0] : j).dump(2).c_str());
+    return;
+  }
+  for (const Measured& m : results) {
+    std::printf(
+        "%s: D/r0 = %.2f, r0 = %.1f cm (tilt %.3f px rms over %d frames, %.0f %% of the "
+        "frame registered)",
+        m.item.name.c_str(), m.estimate.d_over_r0, 100 * m.estimate.r0_m,
+        std::sqrt(m.estimate.tilt.variance_px2), m.estimate.tilt.frames,
+        100 * m.estimate.tilt.coverage);
+    if (m.item.truth > 0) {
+      std::printf(", true %.2f (%+.0f %%)", m.item.truth,
+                  100 * (m.estimate.d_over_r0 / m.item.truth - 1));
+    }
+    std::printf("\n");
+  }
+  print_summary(summary, "errors");
+}
+
+// ---- vkjr2 estimate-train ---------------------------------------------------
+
+struct TrainArgs {
+  Common c;
+  std::string output;
+  jr2::TiltOptions tilt;
+  double rho = 0.9;
+  bool force = false;
+};
+
+void run_train(const TrainArgs& a) {
+  a.tilt.validate();
+  check_output_file(a.output, a.force, "OUT");
+  check_extension(a.output, {".safetensors"}, "OUT");
+  if (a.c.benchmark.empty() && a.c.clips.empty()) {
+    throw UsageError("--benchmark", "nothing to calibrate on",
+                     "pass --benchmark MANIFEST (its --split probes) or --clips SET");
+  }
+  const sim::Params optics = optics_of(a.c);
+  jr2::ClipSet set;
+  const std::vector<Item> items = collect(a.c, {}, &set);
+  watch_output_folder(std::filesystem::path(a.output).parent_path());
+  const Device device = open_device(a.c.device);
+  jr2::TurbulenceCalibration raw_cal = jr2::TurbulenceCalibration::identity();
+  raw_cal.tilt = a.tilt;
+  raw_cal.tilt_correlation = a.rho;
+  auto results = measure_all(device, items, &set, a.c.max_frames, optics, raw_cal, a.c.quiet,
+                             "estimate-train");
+  std::vector<double> raw, truth;
+  for (const Measured& m : results) {
+    raw.push_back(m.estimate.raw_d_over_r0);
+    truth.push_back(m.item.truth);
+  }
+  jr2::TurbulenceCalibration cal = jr2::fit_calibration(raw, truth, a.tilt, a.rho);
+  for (Measured& m : results) {
+    m.estimate.d_over_r0 = cal.gain * std::pow(m.estimate.raw_d_over_r0, cal.exponent);
+    m.estimate.r0_m = optics.optics.aperture_m / m.estimate.d_over_r0;
+  }
+  const json before = error_summary(results, true), after = error_summary(results, false);
+  cal.metadata["fitted_on"] =
+      a.c.benchmark.empty() ? a.c.clips : a.c.benchmark + " split " + a.c.split;
+  cal.metadata["videos"] = std::to_string(results.size());
+  cal.metadata["frames"] = std::to_string(a.c.max_frames);
+  cal.metadata["errors"] = after.dump();
+  cal.save(a.output);
+  if (a.c.json_out) {
+    const json j = {{"output", a.output},       {"gain", cal.gain},     {"exponent", cal.exponent},
+                    {"videos", results.size()}, {"raw_errors", before}, {"errors", after}};
+    std::printf("%s\n", j.dump(2).c_str());
+    return;
+  }
+  std::printf("estimate-train: D/r0 = %.4f · raw^%.4f from %zu videos -> %s\n", cal.gain,
+              cal.exponent, results.size(), a.output.c_str());
+  print_summary(before, "raw (uncalibrated) errors");
+  print_summary(after, "calibrated errors (on the fitting videos)");
+}
+
+}  // namespace
+
+void add_estimate(CLI::App& app) {
+  auto a = std::make_shared<EstimateArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "estimate", "Estimate the turbulence strength (D/r0, r0) of videos from their tilt");
+  cmd->footer(
+      "The frames are registered against their mean (dense Lucas–Kanade on the device); the\n"
+      "temporal variance of the displacement is the tilt variance, which the Z-tilt formula\n"
+      "σ²_θ = 0.182 (λ/D)² (D/r0)^(5/3) turns into D/r0 with the optics' pixel scale (--preset\n"
+      "or --config), corrected for the frames' correlation and calibrated on simulated videos\n"
+      "(the shipped artifacts/turbulence_estimator.safetensors; vkjr2 estimate-train makes one).\n"
+      "With --benchmark or --clips every video has a known D/r0 and the errors are reported.\n"
+      "Examples:\n"
+      "  vkjr2 estimate probe.avi --json\n"
+      "  vkjr2 estimate --benchmark bench/jr2/manifest.json --split test\n"
+      "  vkjr2 estimate --clips out/wave_clips.safetensors --out out/estimate_wave.json");
+  cmd->add_option("VIDEO", a->videos, "Videos to estimate");
+  add_common(cmd, a->c, "test");
+  cmd->add_option("--calibration", a->calibration,
+                  "A calibration file (vkjr2 estimate-train; default: the shipped one)");
+  cmd->add_flag("--raw", a->raw, "No calibration: the Z-tilt formula's value");
+  cmd->add_option("--out", a->out, "Also write the results as JSON to this file");
+  cmd->add_flag("--force", a->force, "Replace an existing --out file");
+  cmd->callback([a] { run_estimate(*a); });
+
+  auto t = std::make_shared<TrainArgs>();
+  CLI::App* tc = app.add_subcommand("estimate-train",
+                                    "Calibrate the turbulence estimate on videos of known D/r0");
+  tc->footer(
+      "Measures the raw D/r0 of every probe video of a benchmark's --split (default val, never\n"
+      "the test split) or of a clip set, fits D/r0 = gain · raw^exponent in logs, and writes\n"
+      "the calibration with its options. The errors it prints are on the fitting videos.\n"
+      "Examples:\n"
+      "  vkjr2 estimate-train artifacts/turbulence_estimator.safetensors \\\n"
+      "      --benchmark bench/jr2/manifest.json --force   # the shipped calibration");
+  tc->add_option("OUT", t->output, "Calibration file to write (.safetensors)")->required();
+  add_common(tc, t->c, "val");
+  tc->add_option("--radius", t->tilt.radius, "Registration window radius (px)")
+      ->default_val(t->tilt.radius)
+      ->check(integer_range(1, 32));
+  tc->add_option("--iterations", t->tilt.iterations, "Lucas–Kanade steps per pass")
+      ->default_val(t->tilt.iterations)
+      ->check(integer_range(1, 100));
+  tc->add_option("--passes", t->tilt.passes, "Registration passes")
+      ->default_val(t->tilt.passes)
+      ->check(integer_range(1, 10));
+  tc->add_option("--min-eigenvalue", t->tilt.min_eigenvalue,
+                 "Texture threshold of a registration window (0..1 intensities per pixel, squared)")
+      ->default_val(t->tilt.min_eigenvalue)
+      ->check(positive_up_to(1.0));
+  tc->add_option("--border", t->tilt.border, "Pixels at the frame's edge left out (px)")
+      ->default_val(t->tilt.border)
+      ->check(integer_range(0, 1000));
+  tc->add_option("--tilt-correlation", t->rho,
+                 "Frame-to-frame correlation of the tilt the variance is corrected for")
+      ->default_val(t->rho)
+      ->check(finite_range(0.0, 0.99));
+  tc->add_flag("--force", t->force, "Replace an existing OUT");
+  tc->callback([t] { run_train(*t); });
+}
+
+}  // namespace vkjr2::cli

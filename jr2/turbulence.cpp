@@ -1,0 +1,334 @@
+#include <vkjr2/jr2/turbulence.hpp>
+#include <vkjr2/kernels/basic.hpp>
+#include <vkjr2/kernels/elementwise.hpp>
+#include <vkjr2/kernels/flow.hpp>
+#include <vkjr2/kernels/reduce.hpp>
+#include <vkjr2/kernels/warp.hpp>
+#include <vkjr2/nets/safetensors.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
+#include <vkjr2/sim/tilt.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <string>
+#include <utility>
+
+namespace vkjr2::jr2 {
+namespace {
+
+constexpr const char* kKind = "vkjr2.turbulence_calibration";
+constexpr double kMinCoverage = 0.02;
+
+std::string num(double v) {
+  char buf[40];
+  std::snprintf(buf, sizeof buf, "%.17g", v);
+  return buf;
+}
+
+double parse_number(const std::map<std::string, std::string>& meta, const std::string& key,
+                    const std::filesystem::path& path) {
+  const auto it = meta.find(key);
+  if (it == meta.end()) {
+    throw Error("load turbulence calibration", path.string() + " has no metadata key '" + key + "'",
+                "make the file with `vkjr2 estimate-train`");
+  }
+  try {
+    std::size_t used = 0;
+    const double v = std::stod(it->second, &used);
+    if (used != it->second.size() || !std::isfinite(v)) throw std::invalid_argument("");
+    return v;
+  } catch (const std::exception&) {
+    throw Error("load turbulence calibration",
+                path.string() + ": metadata '" + key + "' = '" + it->second + "' is not a number",
+                "make the file again with `vkjr2 estimate-train`");
+  }
+}
+
+// The column mean of frames [T, 1, H, W] into mean [1, 1, H, W].
+void temporal_mean(Stream& s, const Tensor& frames, const Tensor& mean) {
+  const Shape& fs = frames.shape();
+  const Tensor m = mean.reshape(Shape{fs[2] * fs[3]});
+  kernels::sum_channels(s, frames.reshape(Shape{fs[0], fs[2] * fs[3]}), m);
+  kernels::scale_shift(s, m, float(1.0 / double(fs[0])), 0.f, m);
+}
+
+}  // namespace
+
+void TiltOptions::validate() const {
+  const char* op = "turbulence estimate";
+  if (radius < 1 || radius > 32) {
+    throw InvalidArgument(op, "radius " + std::to_string(radius) + " is out of range",
+                          "use a window radius in 1..32 pixels");
+  }
+  if (iterations < 1 || iterations > 100) {
+    throw InvalidArgument(op, "iterations " + std::to_string(iterations) + " is out of range",
+                          "use 1..100 Lucas–Kanade steps per pass");
+  }
+  if (passes < 1 || passes > 10) {
+    throw InvalidArgument(op, "passes " + std::to_string(passes) + " is out of range",
+                          "use 1..10 registration passes");
+  }
+  if (!(min_eigenvalue > 0.f) || !std::isfinite(min_eigenvalue)) {
+    throw InvalidArgument(op, "min_eigenvalue " + num(min_eigenvalue) + " is not positive",
+                          "use a small positive texture threshold such as 2e-5");
+  }
+  if (border < 0) {
+    throw InvalidArgument(op, "border " + std::to_string(border) + " is negative",
+                          "use 0 or more pixels");
+  }
+}
+
+TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions& options) {
+  options.validate();
+  const char* op = "turbulence estimate";
+  const Shape& fs = frames.shape();
+  if (frames.dtype() != DType::f32 || fs.rank() != 4 || fs[1] != 1) {
+    throw InvalidArgument(op, "frames " + fs.str() + " must be grey frames [T, 1, H, W]",
+                          "convert the video with jr2::grey_frames");
+  }
+  const std::int64_t t = fs[0], h = fs[2], w = fs[3];
+  if (t < 2) {
+    throw InvalidArgument(op, "a video of " + std::to_string(t) + " frame has no tilt to measure",
+                          "give at least 2 frames (30 for a stable estimate)");
+  }
+  const std::int64_t inner = 2 * (options.border + 1);
+  if (h < inner || w < inner) {
+    throw InvalidArgument(
+        op,
+        "frames of " + std::to_string(w) + "×" + std::to_string(h) +
+            " px leave nothing inside the " + std::to_string(options.border) + " px border",
+        "use frames larger than " + std::to_string(inner) + " px or a smaller border");
+  }
+  {
+    const std::vector<float> v = frames.download();
+    const auto bad = std::find_if(v.begin(), v.end(), [](float x) { return !std::isfinite(x); });
+    if (bad != v.end()) {
+      throw InvalidArgument(
+          op, "frame " + std::to_string((bad - v.begin()) / (h * w)) + " holds a non-finite pixel",
+          "check the video: its pixels must be numbers");
+    }
+  }
+  const Device& dev = stream.device();
+  const Shape flow_shape{t, 2, h, w};
+  Tensor a = Tensor::empty(dev, flow_shape), b = Tensor::empty(dev, flow_shape);
+  const Tensor ref = Tensor::empty(dev, Shape{1, 1, h, w});
+  const Tensor eig = Tensor::empty(dev, Shape{t, 1, h, w});
+  const Tensor warped = Tensor::empty(dev, fs);
+  kernels::fill(stream, a, 0.f);
+  temporal_mean(stream, frames, ref);
+  const kernels::LucasKanade lk{options.radius, options.min_eigenvalue};
+  for (int pass = 0; pass < options.passes; ++pass) {
+    if (pass > 0) {
+      // The frames warped back by the registration so far: a sharper mean.
+      kernels::warp(stream, frames, a, warped, kernels::SamplePadding::border);
+      temporal_mean(stream, warped, ref);
+    }
+    for (int it = 0; it < options.iterations; ++it) {
+      kernels::lucas_kanade_step(stream, ref, frames, a, b, eig, lk);
+      std::swap(a, b);
+    }
+  }
+  stream.run();
+  const std::vector<float> flow = a.download();
+  const std::vector<float> lmin =
+      eig.view(Shape{1, 1, h, w}).download();  // the same for every frame
+  const std::size_t plane = std::size_t(h * w);
+  double sum = 0, sum_lag1 = 0;
+  std::size_t used = 0;
+  for (std::int64_t y = options.border; y < h - options.border; ++y) {
+    for (std::int64_t x = options.border; x < w - options.border; ++x) {
+      const std::size_t p = std::size_t(y * w + x);
+      if (!(lmin[p] >= options.min_eigenvalue)) continue;
+      double var = 0, lag1 = 0;
+      for (int axis = 0; axis < 2; ++axis) {
+        double m = 0;
+        for (std::int64_t f = 0; f < t; ++f) m += flow[std::size_t(2 * f + axis) * plane + p];
+        m /= double(t);
+        double m2 = 0, c1 = 0, prev = 0;
+        for (std::int64_t f = 0; f < t; ++f) {
+          const double v = flow[std::size_t(2 * f + axis) * plane + p] - m;
+          m2 += v * v;
+          if (f > 0) c1 += v * prev;
+          prev = v;
+        }
+        var += m2 / double(t);
+        lag1 += c1 / double(t - 1);
+      }
+      sum += 0.5 * var;
+      sum_lag1 += 0.5 * lag1;
+      ++used;
+    }
+  }
+  TiltMeasure out;
+  out.frames = int(t);
+  out.coverage = double(used) / double(plane);
+  if (out.coverage < kMinCoverage) {
+    throw InvalidArgument(
+        op,
+        "only " + std::to_string(used) +
+            " pixels have texture enough to register (the frames are nearly flat)",
+        "give a video with visible detail, or lower min_eigenvalue");
+  }
+  out.variance_px2 = sum / double(used);
+  out.lag1_covariance_px2 = sum_lag1 / double(used);
+  return out;
+}
+
+double correlated_variance_factor(int frames, double rho) {
+  if (frames < 2 || !(rho >= 0.0 && rho < 1.0)) {
+    throw InvalidArgument("correlated_variance_factor",
+                          "frames " + std::to_string(frames) + ", rho " + num(rho),
+                          "use at least 2 frames and 0 ≤ rho < 1");
+  }
+  double s = 1.0, rk = 1.0;
+  for (int k = 1; k < frames; ++k) {
+    rk *= rho;
+    s += 2.0 * (1.0 - double(k) / frames) * rk;
+  }
+  return 1.0 - s / frames;
+}
+
+double raw_d_over_r0(double variance_px2, int frames, const sim::Params& optics, double rho) {
+  // Z-tilt angle variance at D/r0 = 1, in pixels²: 0.182 (λ/D)² / IFOV².
+  sim::Params p = optics;
+  p.path.strength = sim::Strength::r0;
+  p.path.r0_m = p.optics.aperture_m;  // D/r0 = 1 at the first wavelength
+  p.path.r0_wavelength_m = 0;
+  const double ifov = sim::pixel_pitch_m(p) / p.optics.focal_length_m;
+  const double unit_px2 = sim::tilt_angle_variance_rad2(p, 0) / (ifov * ifov);
+  const double corrected = variance_px2 / correlated_variance_factor(frames, rho);
+  return std::pow(corrected / unit_px2, 3.0 / 5.0);
+}
+
+TurbulenceCalibration TurbulenceCalibration::identity() { return {}; }
+
+void TurbulenceCalibration::save(const std::filesystem::path& path) const {
+  std::map<std::string, std::string> meta = metadata;
+  meta["kind"] = kKind;
+  meta["gain"] = num(gain);
+  meta["exponent"] = num(exponent);
+  meta["tilt_correlation"] = num(tilt_correlation);
+  meta["tilt.radius"] = std::to_string(tilt.radius);
+  meta["tilt.iterations"] = std::to_string(tilt.iterations);
+  meta["tilt.passes"] = std::to_string(tilt.passes);
+  meta["tilt.min_eigenvalue"] = num(tilt.min_eigenvalue);
+  meta["tilt.border"] = std::to_string(tilt.border);
+  const std::vector<float> values{float(std::log(gain)), float(exponent)};
+  const std::vector<nets::SafetensorsRecord> records{
+      nets::SafetensorsRecord::f32("log_gain_exponent", {2}, values)};
+  nets::write_safetensors(path, records, meta);
+}
+
+TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& path) {
+  const nets::SafetensorsFile file = nets::read_safetensors(path);
+  const auto kind = file.metadata.find("kind");
+  if (kind == file.metadata.end() || kind->second != kKind) {
+    throw Error(
+        "load turbulence calibration",
+        path.string() + " is not a turbulence calibration (metadata kind is not '" + kKind + "')",
+        "give the file `vkjr2 estimate-train` wrote");
+  }
+  TurbulenceCalibration c;
+  c.metadata = file.metadata;
+  c.gain = parse_number(file.metadata, "gain", path);
+  c.exponent = parse_number(file.metadata, "exponent", path);
+  c.tilt_correlation = parse_number(file.metadata, "tilt_correlation", path);
+  c.tilt.radius = int(parse_number(file.metadata, "tilt.radius", path));
+  c.tilt.iterations = int(parse_number(file.metadata, "tilt.iterations", path));
+  c.tilt.passes = int(parse_number(file.metadata, "tilt.passes", path));
+  c.tilt.min_eigenvalue = float(parse_number(file.metadata, "tilt.min_eigenvalue", path));
+  c.tilt.border = int(parse_number(file.metadata, "tilt.border", path));
+  if (!(c.gain > 0) || !(c.tilt_correlation >= 0 && c.tilt_correlation < 1)) {
+    throw Error("load turbulence calibration",
+                path.string() + " holds gain " + num(c.gain) + " and tilt_correlation " +
+                    num(c.tilt_correlation),
+                "make the file again with `vkjr2 estimate-train`");
+  }
+  try {
+    c.tilt.validate();
+  } catch (const InvalidArgument& e) {
+    throw Error("load turbulence calibration", path.string() + ": " + e.problem(),
+                "make the file again with `vkjr2 estimate-train`");
+  }
+  for (const char* k : {"kind", "gain", "exponent", "tilt_correlation", "tilt.radius",
+                        "tilt.iterations", "tilt.passes", "tilt.min_eigenvalue", "tilt.border"}) {
+    c.metadata.erase(k);
+  }
+  return c;
+}
+
+TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
+                                       const sim::Params& optics,
+                                       const TurbulenceCalibration& calibration) {
+  TurbulenceEstimate e;
+  e.tilt = measure_tilt(stream, frames, calibration.tilt);
+  e.raw_d_over_r0 =
+      raw_d_over_r0(e.tilt.variance_px2, e.tilt.frames, optics, calibration.tilt_correlation);
+  e.d_over_r0 = calibration.gain * std::pow(e.raw_d_over_r0, calibration.exponent);
+  e.r0_m = optics.optics.aperture_m / e.d_over_r0;
+  return e;
+}
+
+TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<const double> truth,
+                                      const TiltOptions& tilt, double tilt_correlation) {
+  const char* op = "fit turbulence calibration";
+  if (raw.size() != truth.size() || raw.size() < 3) {
+    throw InvalidArgument(op,
+                          std::to_string(raw.size()) + " measurements for " +
+                              std::to_string(truth.size()) + " true values",
+                          "give at least 3 videos of known D/r0");
+  }
+  double sx = 0, sy = 0, sxx = 0, sxy = 0;
+  const double n = double(raw.size());
+  for (std::size_t i = 0; i < raw.size(); ++i) {
+    if (!(raw[i] > 0) || !(truth[i] > 0)) {
+      throw InvalidArgument(
+          op,
+          "video " + std::to_string(i) + ": raw " + num(raw[i]) + ", true D/r0 " + num(truth[i]),
+          "every value must be positive");
+    }
+    const double x = std::log(raw[i]), y = std::log(truth[i]);
+    sx += x;
+    sy += y;
+    sxx += x * x;
+    sxy += x * y;
+  }
+  const double var = sxx - sx * sx / n;
+  if (!(var > 1e-12 * n)) {
+    throw InvalidArgument(op, "the raw values do not vary", "calibrate on a range of strengths");
+  }
+  TurbulenceCalibration c;
+  c.exponent = (sxy - sx * sy / n) / var;
+  c.gain = std::exp((sy - c.exponent * sx) / n);
+  c.tilt = tilt;
+  c.tilt_correlation = tilt_correlation;
+  return c;
+}
+
+std::vector<float> grey_frames(std::span<const float> rgb, int frames, int channels, int height,
+                               int width, float range) {
+  const std::size_t plane = std::size_t(height) * std::size_t(width);
+  if (frames < 1 || channels < 1 || rgb.size() != std::size_t(frames) * channels * plane) {
+    throw InvalidArgument("grey_frames", std::to_string(rgb.size()) + " values for " +
+                                             std::to_string(frames) + " frames of " +
+                                             std::to_string(channels) + "×" +
+                                             std::to_string(height) + "×" + std::to_string(width));
+  }
+  std::vector<float> out(std::size_t(frames) * plane);
+  const float scale = 1.f / (range * float(channels));
+  for (int f = 0; f < frames; ++f) {
+    for (std::size_t p = 0; p < plane; ++p) {
+      float s = 0;
+      for (int c = 0; c < channels; ++c) s += rgb[(std::size_t(f) * channels + c) * plane + p];
+      out[std::size_t(f) * plane + p] = s * scale;
+    }
+  }
+  return out;
+}
+
+std::filesystem::path default_turbulence_calibration_path() {
+  return sim::default_blur_model_path().parent_path() / "turbulence_estimator.safetensors";
+}
+
+}  // namespace vkjr2::jr2

@@ -1,0 +1,101 @@
+// Turbulence strength from the footage alone (docs/jr2.md, "Estimating the
+// turbulence"): D/r0 of a video from its frame-to-frame tilt.
+//
+// The frames are registered against their mean by dense Lucas–Kanade
+// (kernels/flow.hpp), twice: the second pass against the mean of the frames
+// warped back by the first, which is sharper. The per-pixel temporal
+// variance of the displacement, averaged over both axes and over the pixels
+// whose window has enough texture, is the tilt variance σ²
+// (pixels², one axis). The Z-tilt formula σ²_θ = 0.182 (λ/D)² (D/r0)^(5/3)
+// (sim/tilt.hpp) with the optics' pixel scale turns it into a raw D/r0.
+// A variance about the mean of T correlated frames is short of the true one by
+// the factor 1 − (1/T)(1 + 2 Σ_k (1 − k/T) ρ^k) for an AR(1) tilt of
+// frame-to-frame correlation ρ; the raw value is corrected by it. A
+// calibration fitted on simulated videos of known D/r0,
+// D/r0 = gain · raw^exponent, takes out what the registration still biases
+// (blur, noise, compression, the window's averaging).
+#pragma once
+
+#include <vkjr2/runtime/stream.hpp>
+#include <vkjr2/sim/params.hpp>
+
+#include <cstdint>
+#include <filesystem>
+#include <map>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace vkjr2::jr2 {
+
+struct TiltOptions {
+  int radius = 3;                // registration window: kernels::LucasKanade::radius
+  int iterations = 5;            // Lucas–Kanade steps per pass
+  int passes = 2;                // registrations against the (re-)averaged frames
+  float min_eigenvalue = 2e-5f;  // windows flatter than this (0..1 intensities) are not used
+  int border = 8;                // pixels from the edge that are not used
+  // Throws InvalidArgument naming the option and the fix.
+  void validate() const;
+};
+
+struct TiltMeasure {
+  int frames = 0;
+  double variance_px2 = 0;         // one-axis temporal variance of the displacement, pixels²
+  double lag1_covariance_px2 = 0;  // its covariance between consecutive frames
+  double coverage = 0;             // share of the frame's pixels used
+};
+
+// Measures the tilt of T grey frames ([T, 1, H, W], 0..1, T ≥ 2) on the
+// stream's device. Throws InvalidArgument for a frame smaller than the
+// border and window, fewer than 2 frames, a non-finite pixel, or a video
+// without texture enough to register (coverage below 2 %), naming the fix.
+TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions& options = {});
+
+// The factor by which the variance about the mean of `frames` samples of an
+// AR(1) series of correlation rho falls short of its variance.
+double correlated_variance_factor(int frames, double rho);
+
+struct TurbulenceCalibration {
+  double gain = 1.0, exponent = 1.0;  // D/r0 = gain · raw^exponent
+  double tilt_correlation = 0.9;      // ρ the raw value is corrected with
+  TiltOptions tilt;
+  std::map<std::string, std::string> metadata;  // what it was fitted on
+
+  // The identity calibration (raw values, ρ = 0.9).
+  static TurbulenceCalibration identity();
+  // Atomic write; the reader checks every key and names the file.
+  void save(const std::filesystem::path& path) const;
+  static TurbulenceCalibration load(const std::filesystem::path& path);
+};
+
+struct TurbulenceEstimate {
+  TiltMeasure tilt;
+  double raw_d_over_r0 = 0;  // from the corrected tilt variance by the Z-tilt formula
+  double d_over_r0 = 0;      // calibrated, at the optics' first wavelength
+  double r0_m = 0;           // D / (D/r0)
+};
+
+// D/r0 from a tilt variance through the Z-tilt formula, with the optics'
+// pixel scale and first wavelength (optics.image and the turbulence of
+// `optics` are not used) and the correlation correction.
+double raw_d_over_r0(double variance_px2, int frames, const sim::Params& optics, double rho);
+
+TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
+                                       const sim::Params& optics,
+                                       const TurbulenceCalibration& calibration);
+
+// Least-squares fit of log D/r0 = log gain + exponent · log raw over pairs
+// (raw, true D/r0). Throws InvalidArgument for fewer than 3 pairs, a
+// non-positive value, or raw values that do not vary.
+TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<const double> truth,
+                                      const TiltOptions& tilt, double tilt_correlation);
+
+// Frames as the estimator reads them: the mean of the channels of
+// [T, C, H, W] host pixels in 0..range → [T, 1, H, W] 0..1.
+std::vector<float> grey_frames(std::span<const float> rgb, int frames, int channels, int height,
+                               int width, float range = 255.f);
+
+// The shipped calibration (artifacts/turbulence_estimator.safetensors).
+std::filesystem::path default_turbulence_calibration_path();
+
+}  // namespace vkjr2::jr2

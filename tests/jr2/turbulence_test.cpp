@@ -1,0 +1,241 @@
+#include <vkjr2/jr2/benchmark.hpp>
+#include <vkjr2/jr2/turbulence.hpp>
+#include <vkjr2/nets/safetensors.hpp>
+#include <vkjr2/sim/p2s_blur_model.hpp>
+#include <vkjr2/sim/simulator.hpp>
+#include <vkjr2/sim/tilt.hpp>
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+#include <vector>
+
+#include "support/expect_error.hpp"
+#include "support/temp_dir.hpp"
+#include "support/test_device.hpp"
+
+namespace vkjr2::jr2 {
+namespace {
+
+// A textured scene (0..1): sinusoids at several scales, enough detail
+// everywhere for the registration.
+std::vector<float> texture(int h, int w) {
+  std::vector<float> v(std::size_t(h) * w);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      v[std::size_t(y) * w + x] =
+          float(0.5 + 0.15 * std::sin(0.35 * x + 0.1 * y) + 0.12 * std::cos(0.29 * y - 0.07 * x) +
+                0.08 * std::sin(0.8 * x) * std::cos(0.7 * y) + 0.05 * std::sin(0.13 * (x + y)));
+    }
+  }
+  return v;
+}
+
+// Per-pixel one-axis temporal variance of flows [T, 2, H, W], averaged over
+// the pixels at least `border` from the edge.
+double mean_temporal_variance(const std::vector<float>& flow, int t, int h, int w, int border) {
+  const std::size_t plane = std::size_t(h) * w;
+  double sum = 0;
+  int n = 0;
+  for (int y = border; y < h - border; ++y) {
+    for (int x = border; x < w - border; ++x) {
+      for (int a = 0; a < 2; ++a) {
+        double m = 0, m2 = 0;
+        for (int f = 0; f < t; ++f) {
+          const double v = flow[std::size_t(2 * f + a) * plane + std::size_t(y) * w + x];
+          m += v;
+          m2 += v * v;
+        }
+        m /= t;
+        sum += m2 / t - m * m;
+        ++n;
+      }
+    }
+  }
+  return sum / n;
+}
+
+// Frames of a scene shifted as a whole by known translations: the measured
+// variance is the translations' own.
+TEST(Jr2Turbulence, MeasuresTheVarianceOfKnownShifts) {
+  Device& dev = test::device();
+  const int t = 12, h = 64, w = 72;
+  std::mt19937 rng(3);
+  std::normal_distribution<double> shift(0.0, 0.8);
+  std::vector<double> sx(t), sy(t);
+  std::vector<float> frames;
+  for (int f = 0; f < t; ++f) {
+    sx[std::size_t(f)] = shift(rng);
+    sy[std::size_t(f)] = shift(rng);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        // frame(x) = scene(x − s): registered back by a flow of +s.
+        const double u = x - sx[std::size_t(f)], v = y - sy[std::size_t(f)];
+        frames.push_back(float(0.5 + 0.15 * std::sin(0.35 * u + 0.1 * v) +
+                               0.12 * std::cos(0.29 * v - 0.07 * u) +
+                               0.08 * std::sin(0.8 * u) * std::cos(0.7 * v)));
+      }
+    }
+  }
+  double want = 0;
+  for (const auto* s : {&sx, &sy}) {
+    double m = 0, m2 = 0;
+    for (double v : *s) {
+      m += v;
+      m2 += v * v;
+    }
+    m /= t;
+    want += 0.5 * (m2 / t - m * m);
+  }
+  Stream s(dev);
+  const TiltMeasure got = measure_tilt(s, Tensor::from(dev, {t, 1, h, w}, frames));
+  EXPECT_EQ(got.frames, t);
+  EXPECT_GT(got.coverage, 0.5);
+  EXPECT_NEAR(got.variance_px2, want, 0.05 * want) << "shift variance " << want << " px²";
+}
+
+// A simulated video: the registration finds the simulator's own tilt
+// variance (its flow maps), and the raw D/r0 grows with the true one.
+TEST(Jr2Turbulence, FindsTheSimulatorsTilt) {
+  Device& dev = test::device();
+  const int t = 16, size = 96;
+  const auto scene = texture(size, size);
+  std::vector<float> rgb;
+  for (int c = 0; c < 3; ++c) rgb.insert(rgb.end(), scene.begin(), scene.end());
+  const Tensor x = Tensor::from(dev, {1, 3, size, size}, rgb);
+  const auto blur = sim::load_shipped_blur_models(dev);
+  double previous_raw = 0;
+  for (double d_over_r0 : {2.0, 6.0}) {
+    sim::Simulator simulator(dev, probe_sim_params(d_over_r0, size), blur, probe_sim_options());
+    simulator.reset(7);
+    const Tensor y = Tensor::empty(dev, {1, 3, size, size});
+    std::vector<float> frames, flows;
+    Stream s(dev);
+    for (int f = 0; f < t; ++f) {
+      simulator.frame(s, x, y);
+      s.run();
+      const auto v = y.download();
+      const auto g = grey_frames(v, 1, 3, size, size, 1.f);
+      frames.insert(frames.end(), g.begin(), g.end());
+      const auto fl = simulator.flow().download();
+      flows.insert(flows.end(), fl.begin(), fl.end());
+    }
+    const TiltOptions o;
+    const double truth = mean_temporal_variance(flows, t, size, size, o.border);
+    const TiltMeasure got = measure_tilt(s, Tensor::from(dev, {t, 1, size, size}, frames), o);
+    EXPECT_NEAR(got.variance_px2, truth, 0.25 * truth) << "D/r0 " << d_over_r0;
+    const double raw = raw_d_over_r0(got.variance_px2, t, probe_sim_params(d_over_r0, size), 0.9);
+    EXPECT_GT(raw, previous_raw * 1.5) << "D/r0 " << d_over_r0;
+    previous_raw = raw;
+  }
+}
+
+TEST(Jr2Turbulence, RawDOverR0InvertsTheZTiltFormula) {
+  const sim::Params p = probe_sim_params(3.0, 64);
+  // The per-axis variance in pixels² the formula gives at D/r0 = 3, before
+  // the correlation's shortfall.
+  const double ifov = sim::pixel_pitch_m(p) / p.optics.focal_length_m;
+  const double var = sim::tilt_angle_variance_rad2(p, 0) / (ifov * ifov);
+  const double factor = correlated_variance_factor(30, 0.9);
+  EXPECT_NEAR(raw_d_over_r0(var * factor, 30, p, 0.9), 3.0, 1e-9);
+  EXPECT_NEAR(correlated_variance_factor(10, 0.0), 0.9, 1e-12);  // (T − 1)/T
+  EXPECT_LT(correlated_variance_factor(30, 0.9), correlated_variance_factor(30, 0.5));
+  test::expect_invalid_argument([] { (void)correlated_variance_factor(1, 0.5); }, "frames 1");
+  test::expect_invalid_argument([] { (void)correlated_variance_factor(8, 1.0); }, "rho");
+}
+
+TEST(Jr2Turbulence, CalibrationFitsAndRoundTrips) {
+  std::vector<double> raw, truth;
+  for (double r : {0.5, 1.0, 2.0, 4.0, 7.0}) {
+    raw.push_back(r);
+    truth.push_back(1.3 * std::pow(r, 0.8));
+  }
+  TiltOptions o;
+  o.radius = 5;
+  const TurbulenceCalibration c = fit_calibration(raw, truth, o, 0.85);
+  EXPECT_NEAR(c.gain, 1.3, 1e-9);
+  EXPECT_NEAR(c.exponent, 0.8, 1e-9);
+  test::TempDir dir;
+  const auto path = dir.path / "cal.safetensors";
+  TurbulenceCalibration saved = c;
+  saved.metadata["fitted_on"] = "five numbers";
+  saved.save(path);
+  const TurbulenceCalibration back = TurbulenceCalibration::load(path);
+  EXPECT_DOUBLE_EQ(back.gain, c.gain);
+  EXPECT_DOUBLE_EQ(back.exponent, c.exponent);
+  EXPECT_DOUBLE_EQ(back.tilt_correlation, 0.85);
+  EXPECT_EQ(back.tilt.radius, 5);
+  EXPECT_EQ(back.metadata.at("fitted_on"), "five numbers");
+  test::expect_invalid_argument(
+      [&] {
+        (void)fit_calibration(std::vector<double>{1, 2}, std::vector<double>{1, 2}, o, 0.9);
+      },
+      "at least 3 videos");
+  test::expect_invalid_argument(
+      [&] {
+        (void)fit_calibration(std::vector<double>{2, 2, 2}, std::vector<double>{1, 2, 3}, o, 0.9);
+      },
+      "do not vary");
+  test::expect_invalid_argument(
+      [&] {
+        (void)fit_calibration(std::vector<double>{1, -2, 3}, std::vector<double>{1, 2, 3}, o, 0.9);
+      },
+      "positive");
+  // Another safetensors file is not a calibration.
+  const auto other = dir.path / "other.safetensors";
+  TurbulenceCalibration::identity().save(other);
+  {
+    auto file = nets::read_safetensors(other);
+    file.metadata["kind"] = "vkjr2.restorer";
+    nets::write_safetensors(other, file.tensors, file.metadata);
+  }
+  try {
+    (void)TurbulenceCalibration::load(other);
+    ADD_FAILURE() << "a file of another kind was read as a calibration";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("is not a turbulence calibration"), std::string::npos)
+        << e.what();
+    EXPECT_NE(std::string(e.what()).find("other.safetensors"), std::string::npos) << e.what();
+  }
+}
+
+TEST(Jr2Turbulence, BadVideosAreClearErrors) {
+  Device& dev = test::device();
+  Stream s(dev);
+  const auto scene = texture(40, 40);
+  test::expect_invalid_argument(
+      [&] {
+        (void)measure_tilt(s, Tensor::from(dev, {1, 1, 40, 40}, scene));
+      },
+      "1 frame");
+  std::vector<float> two = scene;
+  two.insert(two.end(), scene.begin(), scene.end());
+  two[1700] = std::nanf("");
+  test::expect_invalid_argument(
+      [&] {
+        (void)measure_tilt(s, Tensor::from(dev, {2, 1, 40, 40}, two));
+      },
+      "frame 1 holds a non-finite pixel");
+  test::expect_invalid_argument(
+      [&] {
+        (void)measure_tilt(s, Tensor::from(dev, {2, 1, 40, 40}, std::vector<float>(3200, 0.5f)));
+      },
+      "texture enough");
+  test::expect_invalid_argument(
+      [&] {
+        (void)measure_tilt(s, Tensor::from(dev, {2, 1, 12, 40}, std::vector<float>(960, 0.5f)));
+      },
+      "leave nothing inside");
+  test::expect_invalid_argument(
+      [&] {
+        (void)measure_tilt(s, Tensor::from(dev, {2, 3, 20, 20}, std::vector<float>(2400)));
+      },
+      "must be grey frames");
+  TiltOptions bad;
+  bad.radius = 0;
+  test::expect_invalid_argument([&] { bad.validate(); }, "radius 0");
+}
+
+}  // namespace
+}  // namespace vkjr2::jr2
