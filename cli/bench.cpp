@@ -36,7 +36,7 @@ struct Benchmark {
   const char* what;
 };
 
-constexpr std::array<Benchmark, 7> kBenchmarks{{
+constexpr std::array<Benchmark, 8> kBenchmarks{{
     {"sim", "sim_bench",
      "fast simulator frames/s and speedup over the wave-optics reference (device and FFTW CPU)"},
     {"kernels", "kernels_bench", "each kernel against OpenCV, FFTW or plain C++"},
@@ -48,6 +48,8 @@ constexpr std::array<Benchmark, 7> kBenchmarks{{
      "the restorer's inference frames/s and training steps/s against PyTorch on the CPU"},
     {"cotrain", "cotrain_bench",
      "a JR² co-training step, stage by stage, and its device memory against PyTorch on the CPU"},
+    {"estimate", "estimate_bench",
+     "the turbulence estimate's tilt registration against OpenCV DIS optical flow"},
 }};
 
 const Benchmark* find_benchmark(std::string_view name) {

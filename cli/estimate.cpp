@@ -9,6 +9,8 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <opencv2/core.hpp>
+#include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -114,35 +116,102 @@ std::vector<Item> collect(const Common& c, const std::vector<std::string>& video
   return items;
 }
 
-// Grey frames [T, 1, H, W] of an item on the device.
-Tensor load_frames(const Device& device, const Item& item, const jr2::ClipSet* set,
-                   int max_frames) {
+// Grey frames [T, H, W] (0..1) of an item.
+struct GreyVideo {
+  int frames = 0, height = 0, width = 0;
+  std::vector<float> pixels;
+};
+
+GreyVideo load_frames(const Item& item, const jr2::ClipSet* set, int max_frames) {
+  GreyVideo g;
   if (item.clip >= 0) {
     const std::size_t n = std::size_t(set->frames) * 3 * set->size * set->size;
     const std::span<const float> rgb(set->degraded.data() + std::size_t(item.clip) * n, n);
-    const int t = max_frames > 0 ? std::min(max_frames, set->frames) : set->frames;
-    const auto grey = jr2::grey_frames(rgb.first(std::size_t(t) * 3 * set->size * set->size), t, 3,
-                                       set->size, set->size, 1.f);
-    return Tensor::from(device, Shape{t, 1, set->size, set->size}, grey);
+    g.frames = max_frames > 0 ? std::min(max_frames, set->frames) : set->frames;
+    g.height = g.width = set->size;
+    g.pixels = jr2::grey_frames(rgb.first(std::size_t(g.frames) * 3 * set->size * set->size),
+                                g.frames, 3, set->size, set->size, 1.f);
+    return g;
   }
-  std::vector<float> grey;
-  std::int64_t h = 0, w = 0;
   QuietDecoders quiet;
   const std::size_t t =
       read_video(item.video, 1, std::size_t(max_frames), [&](std::size_t, const Image& img) {
-        if (h == 0) {
-          h = img.shape[0];
-          w = img.shape[1];
+        if (g.height == 0) {
+          g.height = int(img.shape[0]);
+          g.width = int(img.shape[1]);
         }
-        const std::size_t plane = std::size_t(h * w);
-        const std::size_t base = grey.size();
-        grey.resize(base + plane);
+        const std::size_t plane = std::size_t(g.height) * g.width;
+        const std::size_t base = g.pixels.size();
+        g.pixels.resize(base + plane);
         for (std::size_t p = 0; p < plane; ++p) {
           const float* px = img.values.data() + 3 * p;
-          grey[base + p] = (px[0] + px[1] + px[2]) / (3.f * 255.f);
+          g.pixels[base + p] = (px[0] + px[1] + px[2]) / (3.f * 255.f);
         }
       });
-  return Tensor::from(device, Shape{std::int64_t(t), 1, h, w}, grey);
+  g.frames = int(t);
+  return g;
+}
+
+// OpenCV's DIS optical flow (medium preset) of every frame against the
+// frames' 8-bit mean, as the flow jr2::tilt_statistics reads: frame t moved by
+// flow_t(x) registers onto the mean.
+jr2::TiltMeasure measure_dis(const GreyVideo& g, const jr2::TiltOptions& options) {
+  const int t = g.frames, h = g.height, w = g.width;
+  if (t < 2) {
+    throw InvalidArgument("turbulence estimate",
+                          "a video of " + std::to_string(t) + " frame has no tilt to measure",
+                          "give at least 2 frames (30 for a stable estimate)");
+  }
+  const int inner = 2 * (options.border + 1);
+  if (h < inner || w < inner) {
+    throw InvalidArgument(
+        "turbulence estimate",
+        "frames of " + std::to_string(w) + "×" + std::to_string(h) +
+            " px leave nothing inside the " + std::to_string(options.border) + " px border",
+        "use frames larger than " + std::to_string(inner) + " px or a smaller border");
+  }
+  const std::size_t plane = std::size_t(h) * std::size_t(w);
+  const auto bad =
+      std::find_if(g.pixels.begin(), g.pixels.end(), [](float v) { return !std::isfinite(v); });
+  if (bad != g.pixels.end()) {
+    throw InvalidArgument("turbulence estimate",
+                          "frame " + std::to_string(std::size_t(bad - g.pixels.begin()) / plane) +
+                              " holds a non-finite pixel",
+                          "check the video: its pixels must be numbers");
+  }
+  std::vector<float> mean(plane, 0.f);
+  for (int f = 0; f < t; ++f) {
+    for (std::size_t p = 0; p < plane; ++p) mean[p] += g.pixels[std::size_t(f) * plane + p];
+  }
+  for (float& v : mean) v /= float(t);
+  cv::Mat mean8, frame8, flow;
+  cv::Mat(h, w, CV_32F, mean.data()).convertTo(mean8, CV_8U, 255.0);
+  const cv::Ptr<cv::DISOpticalFlow> dis =
+      cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM);
+  std::vector<float> flows(std::size_t(t) * 2 * plane);
+  for (int f = 0; f < t; ++f) {
+    // const_cast: cv::Mat wraps the pixels read-only here (convertTo reads).
+    cv::Mat(h, w, CV_32F, const_cast<float*>(g.pixels.data() + std::size_t(f) * plane))
+        .convertTo(frame8, CV_8U, 255.0);
+    dis->calc(mean8, frame8, flow);
+    for (int y = 0; y < h; ++y) {
+      const auto* row = flow.ptr<cv::Vec2f>(y);
+      for (int x = 0; x < w; ++x) {
+        flows[std::size_t(2 * f) * plane + std::size_t(y) * w + x] = row[x][0];
+        flows[std::size_t(2 * f + 1) * plane + std::size_t(y) * w + x] = row[x][1];
+      }
+    }
+  }
+  return jr2::tilt_statistics(flows, t, h, w, jr2::texture_map(mean, h, w, options.radius),
+                              options);
+}
+
+jr2::TiltMeasure measure(const Device& device, const GreyVideo& g,
+                         const jr2::TurbulenceCalibration& cal) {
+  if (cal.registration == "dis") return measure_dis(g, cal.tilt);
+  Stream stream(device);
+  return jr2::measure_tilt(
+      stream, Tensor::from(device, Shape{g.frames, 1, g.height, g.width}, g.pixels), cal.tilt);
 }
 
 struct Measured {
@@ -157,10 +226,9 @@ std::vector<Measured> measure_all(const Device& device, const std::vector<Item>&
   std::vector<Measured> out;
   Progress bar(label, items.size(), quiet || items.size() < 2);
   for (const Item& item : items) {
-    const Tensor frames = load_frames(device, item, set, max_frames);
-    Stream stream(device);
+    const GreyVideo g = load_frames(item, set, max_frames);
     try {
-      out.push_back({item, jr2::estimate_turbulence(stream, frames, optics, cal)});
+      out.push_back({item, jr2::estimate_turbulence(measure(device, g, cal), optics, cal)});
     } catch (const InvalidArgument& e) {
       throw Error("estimate", item.name + ": " + e.problem(), e.fix());
     }
@@ -302,7 +370,7 @@ void run_estimate(const EstimateArgs& a) {
 
 struct TrainArgs {
   Common c;
-  std::string output;
+  std::string output, registration = "dis";
   jr2::TiltOptions tilt;
   double rho = 0.9;
   bool force = false;
@@ -324,6 +392,7 @@ void run_train(const TrainArgs& a) {
   jr2::TurbulenceCalibration raw_cal = jr2::TurbulenceCalibration::identity();
   raw_cal.tilt = a.tilt;
   raw_cal.tilt_correlation = a.rho;
+  raw_cal.registration = a.registration;
   auto results = measure_all(device, items, &set, a.c.max_frames, optics, raw_cal, a.c.quiet,
                              "estimate-train");
   std::vector<double> raw, truth;
@@ -331,7 +400,7 @@ void run_train(const TrainArgs& a) {
     raw.push_back(m.estimate.raw_d_over_r0);
     truth.push_back(m.item.truth);
   }
-  jr2::TurbulenceCalibration cal = jr2::fit_calibration(raw, truth, a.tilt, a.rho);
+  jr2::TurbulenceCalibration cal = jr2::fit_calibration(raw, truth, a.tilt, a.rho, a.registration);
   for (Measured& m : results) {
     m.estimate.d_over_r0 = cal.gain * std::pow(m.estimate.raw_d_over_r0, cal.exponent);
     m.estimate.r0_m = optics.optics.aperture_m / m.estimate.d_over_r0;
@@ -362,7 +431,8 @@ void add_estimate(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "estimate", "Estimate the turbulence strength (D/r0, r0) of videos from their tilt");
   cmd->footer(
-      "The frames are registered against their mean (dense Lucas–Kanade on the device); the\n"
+      "The frames are registered against their mean (dense optical flow: OpenCV's DIS, or\n"
+      "vkjr2's Lucas–Kanade kernel with a calibration fitted with --registration lk); the\n"
       "temporal variance of the displacement is the tilt variance, which the Z-tilt formula\n"
       "σ²_θ = 0.182 (λ/D)² (D/r0)^(5/3) turns into D/r0 with the optics' pixel scale (--preset\n"
       "or --config), corrected for the frames' correlation and calibrated on simulated videos\n"
@@ -393,13 +463,18 @@ void add_estimate(CLI::App& app) {
       "      --benchmark bench/jr2/manifest.json --force   # the shipped calibration");
   tc->add_option("OUT", t->output, "Calibration file to write (.safetensors)")->required();
   add_common(tc, t->c, "val");
-  tc->add_option("--radius", t->tilt.radius, "Registration window radius (px)")
+  tc->add_option("--registration", t->registration,
+                 "dis: OpenCV's DIS optical flow on the CPU; lk: vkjr2's Lucas–Kanade kernel on "
+                 "the device (vkjr2 bench estimate compares them)")
+      ->default_val("dis")
+      ->check(CLI::IsMember({"dis", "lk"}));
+  tc->add_option("--radius", t->tilt.radius, "Texture (and lk's registration) window radius (px)")
       ->default_val(t->tilt.radius)
       ->check(integer_range(1, 32));
-  tc->add_option("--iterations", t->tilt.iterations, "Lucas–Kanade steps per pass")
+  tc->add_option("--iterations", t->tilt.iterations, "lk: Lucas–Kanade steps per pass")
       ->default_val(t->tilt.iterations)
       ->check(integer_range(1, 100));
-  tc->add_option("--passes", t->tilt.passes, "Registration passes")
+  tc->add_option("--passes", t->tilt.passes, "lk: registration passes")
       ->default_val(t->tilt.passes)
       ->check(integer_range(1, 10));
   tc->add_option("--min-eigenvalue", t->tilt.min_eigenvalue,

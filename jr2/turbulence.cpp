@@ -131,15 +131,30 @@ TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions
   }
   stream.run();
   const std::vector<float> flow = a.download();
-  const std::vector<float> lmin =
-      eig.view(Shape{1, 1, h, w}).download();  // the same for every frame
-  const std::size_t plane = std::size_t(h * w);
+  // The window's eigenvalue is the same for every frame (the reference's).
+  const std::vector<float> lmin = eig.view(Shape{1, 1, h, w}).download();
+  return tilt_statistics(flow, int(t), int(h), int(w), lmin, options);
+}
+
+TiltMeasure tilt_statistics(std::span<const float> flow, int frames, int height, int width,
+                            std::span<const float> texture, const TiltOptions& options) {
+  const char* op = "turbulence estimate";
+  const std::size_t plane = std::size_t(height) * std::size_t(width);
+  if (frames < 2 || flow.size() != std::size_t(frames) * 2 * plane || texture.size() != plane) {
+    throw InvalidArgument(op,
+                          std::to_string(flow.size()) + " flow values and " +
+                              std::to_string(texture.size()) + " texture values for " +
+                              std::to_string(frames) + " frames of " + std::to_string(width) + "×" +
+                              std::to_string(height),
+                          "pass [T, 2, H, W] flows (T ≥ 2) and an H×W texture map");
+  }
+  const std::int64_t t = frames, h = height, w = width;
   double sum = 0, sum_lag1 = 0;
   std::size_t used = 0;
   for (std::int64_t y = options.border; y < h - options.border; ++y) {
     for (std::int64_t x = options.border; x < w - options.border; ++x) {
       const std::size_t p = std::size_t(y * w + x);
-      if (!(lmin[p] >= options.min_eigenvalue)) continue;
+      if (!(texture[p] >= options.min_eigenvalue)) continue;
       double var = 0, lag1 = 0;
       for (int axis = 0; axis < 2; ++axis) {
         double m = 0;
@@ -161,7 +176,7 @@ TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions
     }
   }
   TiltMeasure out;
-  out.frames = int(t);
+  out.frames = frames;
   out.coverage = double(used) / double(plane);
   if (out.coverage < kMinCoverage) {
     throw InvalidArgument(
@@ -170,8 +185,53 @@ TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions
             " pixels have texture enough to register (the frames are nearly flat)",
         "give a video with visible detail, or lower min_eigenvalue");
   }
+  if (!std::isfinite(sum) || !std::isfinite(sum_lag1)) {
+    throw InvalidArgument(op, "the registration gave a non-finite displacement",
+                          "check the video: its frames must be finite numbers");
+  }
   out.variance_px2 = sum / double(used);
   out.lag1_covariance_px2 = sum_lag1 / double(used);
+  return out;
+}
+
+std::vector<float> texture_map(std::span<const float> image, int height, int width, int radius) {
+  const std::size_t plane = std::size_t(height) * std::size_t(width);
+  if (height < 1 || width < 1 || image.size() != plane || radius < 0) {
+    throw InvalidArgument("texture_map", std::to_string(image.size()) + " values for " +
+                                             std::to_string(width) + "×" + std::to_string(height) +
+                                             ", radius " + std::to_string(radius));
+  }
+  // Σ of gx², gx·gy, gy² over the window by summed-area tables.
+  const std::size_t sw = std::size_t(width) + 1;
+  std::vector<double> sxx((std::size_t(height) + 1) * sw), sxy(sxx.size()), syy(sxx.size());
+  const auto at = [&](int y, int x) { return double(image[std::size_t(y) * width + x]); };
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const double gx = 0.5 * (at(y, std::min(x + 1, width - 1)) - at(y, std::max(x - 1, 0)));
+      const double gy = 0.5 * (at(std::min(y + 1, height - 1), x) - at(std::max(y - 1, 0), x));
+      const std::size_t i = (std::size_t(y) + 1) * sw + std::size_t(x) + 1;
+      sxx[i] = gx * gx + sxx[i - 1] + sxx[i - sw] - sxx[i - sw - 1];
+      sxy[i] = gx * gy + sxy[i - 1] + sxy[i - sw] - sxy[i - sw - 1];
+      syy[i] = gy * gy + syy[i - 1] + syy[i - sw] - syy[i - sw - 1];
+    }
+  }
+  std::vector<float> out(plane);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const std::size_t y0 = std::size_t(std::max(y - radius, 0));
+      const std::size_t y1 = std::size_t(std::min(y + radius, height - 1)) + 1;
+      const std::size_t x0 = std::size_t(std::max(x - radius, 0));
+      const std::size_t x1 = std::size_t(std::min(x + radius, width - 1)) + 1;
+      const double n = double((y1 - y0) * (x1 - x0));
+      const auto box = [&](const std::vector<double>& s) {
+        return (s[y1 * sw + x1] - s[y0 * sw + x1] - s[y1 * sw + x0] + s[y0 * sw + x0]) / n;
+      };
+      const double a = box(sxx), c = box(sxy), d = box(syy);
+      const double half_diff = 0.5 * (a - d);
+      out[std::size_t(y) * width + x] =
+          float(0.5 * (a + d) - std::sqrt(half_diff * half_diff + c * c));
+    }
+  }
   return out;
 }
 
@@ -209,6 +269,7 @@ void TurbulenceCalibration::save(const std::filesystem::path& path) const {
   meta["gain"] = num(gain);
   meta["exponent"] = num(exponent);
   meta["tilt_correlation"] = num(tilt_correlation);
+  meta["registration"] = registration;
   meta["tilt.radius"] = std::to_string(tilt.radius);
   meta["tilt.iterations"] = std::to_string(tilt.iterations);
   meta["tilt.passes"] = std::to_string(tilt.passes);
@@ -239,6 +300,13 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
   c.tilt.passes = int(parse_number(file.metadata, "tilt.passes", path));
   c.tilt.min_eigenvalue = float(parse_number(file.metadata, "tilt.min_eigenvalue", path));
   c.tilt.border = int(parse_number(file.metadata, "tilt.border", path));
+  const auto reg = file.metadata.find("registration");
+  if (reg == file.metadata.end() || (reg->second != "dis" && reg->second != "lk")) {
+    throw Error("load turbulence calibration",
+                path.string() + " names no registration ('dis' or 'lk')",
+                "make the file again with `vkjr2 estimate-train`");
+  }
+  c.registration = reg->second;
   if (!(c.gain > 0) || !(c.tilt_correlation >= 0 && c.tilt_correlation < 1)) {
     throw Error("load turbulence calibration",
                 path.string() + " holds gain " + num(c.gain) + " and tilt_correlation " +
@@ -251,8 +319,9 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
     throw Error("load turbulence calibration", path.string() + ": " + e.problem(),
                 "make the file again with `vkjr2 estimate-train`");
   }
-  for (const char* k : {"kind", "gain", "exponent", "tilt_correlation", "tilt.radius",
-                        "tilt.iterations", "tilt.passes", "tilt.min_eigenvalue", "tilt.border"}) {
+  for (const char* k :
+       {"kind", "gain", "exponent", "tilt_correlation", "registration", "tilt.radius",
+        "tilt.iterations", "tilt.passes", "tilt.min_eigenvalue", "tilt.border"}) {
     c.metadata.erase(k);
   }
   return c;
@@ -261,8 +330,19 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
 TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
                                        const sim::Params& optics,
                                        const TurbulenceCalibration& calibration) {
+  if (calibration.registration != "lk") {
+    throw InvalidArgument("turbulence estimate",
+                          "the calibration was fitted on '" + calibration.registration +
+                              "' registration, this measures with 'lk'",
+                          "use a calibration fitted with --registration lk");
+  }
+  return estimate_turbulence(measure_tilt(stream, frames, calibration.tilt), optics, calibration);
+}
+
+TurbulenceEstimate estimate_turbulence(const TiltMeasure& tilt, const sim::Params& optics,
+                                       const TurbulenceCalibration& calibration) {
   TurbulenceEstimate e;
-  e.tilt = measure_tilt(stream, frames, calibration.tilt);
+  e.tilt = tilt;
   e.raw_d_over_r0 =
       raw_d_over_r0(e.tilt.variance_px2, e.tilt.frames, optics, calibration.tilt_correlation);
   e.d_over_r0 = calibration.gain * std::pow(e.raw_d_over_r0, calibration.exponent);
@@ -271,7 +351,8 @@ TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
 }
 
 TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<const double> truth,
-                                      const TiltOptions& tilt, double tilt_correlation) {
+                                      const TiltOptions& tilt, double tilt_correlation,
+                                      const std::string& registration) {
   const char* op = "fit turbulence calibration";
   if (raw.size() != truth.size() || raw.size() < 3) {
     throw InvalidArgument(op,
@@ -303,6 +384,7 @@ TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<con
   c.gain = std::exp((sy - c.exponent * sx) / n);
   c.tilt = tilt;
   c.tilt_correlation = tilt_correlation;
+  c.registration = registration;
   return c;
 }
 

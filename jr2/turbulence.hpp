@@ -45,10 +45,25 @@ struct TiltMeasure {
   double coverage = 0;             // share of the frame's pixels used
 };
 
+// The tilt statistics of displacement fields flow [T, 2, H, W] (planar,
+// pixels; frame t moved by flow_t registers onto the reference): the
+// one-axis temporal variance and lag-1 covariance per pixel, averaged over
+// the pixels at least options.border from the edge whose texture[p]
+// (the smaller eigenvalue of the reference's structure tensor, as
+// texture_map gives it) reaches options.min_eigenvalue. Throws
+// InvalidArgument when fewer than 2 % of the pixels qualify.
+TiltMeasure tilt_statistics(std::span<const float> flow, int frames, int height, int width,
+                            std::span<const float> texture, const TiltOptions& options);
+
+// Per pixel, the smaller eigenvalue of the mean structure tensor ⟨g gᵀ⟩
+// (central differences, the border row repeated) over the
+// (2·radius + 1)² window clipped to the image, of a grey image (0..1).
+std::vector<float> texture_map(std::span<const float> image, int height, int width, int radius);
+
 // Measures the tilt of T grey frames ([T, 1, H, W], 0..1, T ≥ 2) on the
-// stream's device. Throws InvalidArgument for a frame smaller than the
-// border and window, fewer than 2 frames, a non-finite pixel, or a video
-// without texture enough to register (coverage below 2 %), naming the fix.
+// stream's device by the Lucas–Kanade kernel (kernels/flow.hpp). Throws InvalidArgument for a frame
+// smaller than the border and window, fewer than 2 frames, a non-finite pixel, or a video without
+// texture enough to register (coverage below 2 %), naming the fix.
 TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions& options = {});
 
 // The factor by which the variance about the mean of `frames` samples of an
@@ -59,6 +74,9 @@ struct TurbulenceCalibration {
   double gain = 1.0, exponent = 1.0;  // D/r0 = gain · raw^exponent
   double tilt_correlation = 0.9;      // ρ the raw value is corrected with
   TiltOptions tilt;
+  // The registration the fit was measured with: "dis" (OpenCV's DIS optical
+  // flow, vkjr2 estimate's) or "lk" (measure_tilt). An estimate uses the same.
+  std::string registration = "dis";
   std::map<std::string, std::string> metadata;  // what it was fitted on
 
   // The identity calibration (raw values, ρ = 0.9).
@@ -80,6 +98,10 @@ struct TurbulenceEstimate {
 // `optics` are not used) and the correlation correction.
 double raw_d_over_r0(double variance_px2, int frames, const sim::Params& optics, double rho);
 
+// The calibrated estimate from a measured tilt.
+TurbulenceEstimate estimate_turbulence(const TiltMeasure& tilt, const sim::Params& optics,
+                                       const TurbulenceCalibration& calibration);
+// The same, measured by measure_tilt (calibration.registration must be "lk").
 TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
                                        const sim::Params& optics,
                                        const TurbulenceCalibration& calibration);
@@ -88,7 +110,8 @@ TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
 // (raw, true D/r0). Throws InvalidArgument for fewer than 3 pairs, a
 // non-positive value, or raw values that do not vary.
 TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<const double> truth,
-                                      const TiltOptions& tilt, double tilt_correlation);
+                                      const TiltOptions& tilt, double tilt_correlation,
+                                      const std::string& registration);
 
 // Frames as the estimator reads them: the mean of the channels of
 // [T, C, H, W] host pixels in 0..range → [T, 1, H, W] 0..1.

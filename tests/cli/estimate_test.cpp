@@ -57,6 +57,16 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
   std::ifstream written(out);
   EXPECT_EQ(json::parse(written), j);
 
+  // The device registration: a calibration of its own, used as it was fitted.
+  const fs::path cal_lk = tmp.path / "cal_lk.safetensors";
+  r = run_cli("estimate-train " + cal_lk.string() + " --benchmark " + manifest +
+              " --registration lk --iterations 3 --passes 1 --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  r = run_cli("estimate --benchmark " + manifest + " --calibration " + cal_lk.string() +
+              " --json --quiet");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["videos"].size(), 6u);
+
   // One video: its estimate alone; the stronger turbulence reads stronger.
   double weak = 0, strong = 0;
   for (const char* s : {"weak", "strong"}) {
@@ -68,6 +78,11 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
     ASSERT_EQ(r.code, 0) << r.output;
     const json one = parse_json(r.output);
     (std::string(s) == "weak" ? weak : strong) += one["raw_d_over_r0"].get<double>();
+    // The shipped calibration (artifacts/turbulence_estimator.safetensors).
+    r = run_cli("estimate " + video.string() + " --json");
+    ASSERT_EQ(r.code, 0) << r.output;
+    EXPECT_DOUBLE_EQ(parse_json(r.output)["raw_d_over_r0"].get<double>(),
+                     one["raw_d_over_r0"].get<double>());
   }
   EXPECT_GT(strong, weak);
 }

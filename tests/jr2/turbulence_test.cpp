@@ -131,6 +131,62 @@ TEST(Jr2Turbulence, FindsTheSimulatorsTilt) {
   }
 }
 
+// The texture map by summed areas equals the window's structure tensor summed
+// directly; the statistics of flows with a known temporal pattern.
+TEST(Jr2Turbulence, TextureMapAndTiltStatistics) {
+  const int h = 13, w = 17, r = 2;
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<float> u(0.f, 1.f);
+  std::vector<float> img(std::size_t(h) * w);
+  for (float& v : img) v = u(rng);
+  const std::vector<float> got = texture_map(img, h, w, r);
+  auto at = [&](int y, int x) { return double(img[std::size_t(y) * w + x]); };
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      double a = 0, c = 0, d = 0;
+      int n = 0;
+      for (int yy = std::max(y - r, 0); yy <= std::min(y + r, h - 1); ++yy) {
+        for (int xx = std::max(x - r, 0); xx <= std::min(x + r, w - 1); ++xx) {
+          const double gx = 0.5 * (at(yy, std::min(xx + 1, w - 1)) - at(yy, std::max(xx - 1, 0)));
+          const double gy = 0.5 * (at(std::min(yy + 1, h - 1), xx) - at(std::max(yy - 1, 0), xx));
+          a += gx * gx;
+          c += gx * gy;
+          d += gy * gy;
+          ++n;
+        }
+      }
+      a /= n;
+      c /= n;
+      d /= n;
+      const double want = 0.5 * (a + d) - std::sqrt(0.25 * (a - d) * (a - d) + c * c);
+      ASSERT_NEAR(got[std::size_t(y) * w + x], want, 1e-6) << y << "," << x;
+    }
+  }
+  // Flows alternating ±1 px in x, none in y: x has variance 1 and lag-1
+  // covariance −1, y none; the one-axis figures are their means.
+  const int t = 4;
+  const std::size_t plane = std::size_t(h) * w;
+  std::vector<float> flow(std::size_t(t) * 2 * plane, 0.f);
+  for (int f = 0; f < t; ++f) {
+    for (std::size_t p = 0; p < plane; ++p)
+      flow[std::size_t(2 * f) * plane + p] = f % 2 ? 1.f : -1.f;
+  }
+  TiltOptions o;
+  o.border = 2;
+  o.min_eigenvalue = 1e-9f;
+  const std::vector<float> textured(plane, 1.f);
+  const TiltMeasure m = tilt_statistics(flow, t, h, w, textured, o);
+  EXPECT_NEAR(m.variance_px2, 0.5, 1e-12);
+  EXPECT_NEAR(m.lag1_covariance_px2, -0.5, 1e-12);
+  EXPECT_NEAR(m.coverage, double((h - 4) * (w - 4)) / double(plane), 1e-12);
+  test::expect_invalid_argument(
+      [&] { (void)tilt_statistics(flow, t, h, w, std::vector<float>(plane, 0.f), o); },
+      "texture enough");
+  test::expect_invalid_argument(
+      [&] { (void)tilt_statistics(std::span(flow).first(10), t, h, w, textured, o); },
+      "flow values");
+}
+
 TEST(Jr2Turbulence, RawDOverR0InvertsTheZTiltFormula) {
   const sim::Params p = probe_sim_params(3.0, 64);
   // The per-axis variance in pixels² the formula gives at D/r0 = 3, before
@@ -153,7 +209,7 @@ TEST(Jr2Turbulence, CalibrationFitsAndRoundTrips) {
   }
   TiltOptions o;
   o.radius = 5;
-  const TurbulenceCalibration c = fit_calibration(raw, truth, o, 0.85);
+  const TurbulenceCalibration c = fit_calibration(raw, truth, o, 0.85, "lk");
   EXPECT_NEAR(c.gain, 1.3, 1e-9);
   EXPECT_NEAR(c.exponent, 0.8, 1e-9);
   test::TempDir dir;
@@ -166,20 +222,23 @@ TEST(Jr2Turbulence, CalibrationFitsAndRoundTrips) {
   EXPECT_DOUBLE_EQ(back.exponent, c.exponent);
   EXPECT_DOUBLE_EQ(back.tilt_correlation, 0.85);
   EXPECT_EQ(back.tilt.radius, 5);
+  EXPECT_EQ(back.registration, "lk");
   EXPECT_EQ(back.metadata.at("fitted_on"), "five numbers");
   test::expect_invalid_argument(
       [&] {
-        (void)fit_calibration(std::vector<double>{1, 2}, std::vector<double>{1, 2}, o, 0.9);
+        (void)fit_calibration(std::vector<double>{1, 2}, std::vector<double>{1, 2}, o, 0.9, "dis");
       },
       "at least 3 videos");
   test::expect_invalid_argument(
       [&] {
-        (void)fit_calibration(std::vector<double>{2, 2, 2}, std::vector<double>{1, 2, 3}, o, 0.9);
+        (void)fit_calibration(std::vector<double>{2, 2, 2}, std::vector<double>{1, 2, 3}, o, 0.9,
+                              "dis");
       },
       "do not vary");
   test::expect_invalid_argument(
       [&] {
-        (void)fit_calibration(std::vector<double>{1, -2, 3}, std::vector<double>{1, 2, 3}, o, 0.9);
+        (void)fit_calibration(std::vector<double>{1, -2, 3}, std::vector<double>{1, 2, 3}, o, 0.9,
+                              "dis");
       },
       "positive");
   // Another safetensors file is not a calibration.
