@@ -72,12 +72,11 @@ constexpr std::int64_t kDescriptor = nets::FaceRecognitionNet::kDescriptorSize;
 struct BenchCotrainArgs {
   int batch = jr2::CoTrainOptions{}.batch, window = jr2::CoTrainOptions{}.window, classes = 19;
   float lambda = jr2::CoTrainOptions{}.lambda, lr = jr2::CoTrainOptions{}.lr;
-  int repeat = 5, threads = 2;
+  int repeat = 5;
   std::uint32_t seed = 1;
-  std::string restorer, device, json_path,
-      python = "/usr/bin/python3",
-      torch_script = std::string(VKJR2_SOURCE_DIR) + "/tools/cotrain_torch.py";
-  bool torch = true, json_out = false;
+  std::string restorer, device, json_path;
+  TorchPeerOptions peer{.script = std::string(VKJR2_SOURCE_DIR) + "/tools/cotrain_torch.py"};
+  bool json_out = false;
 };
 
 // The stages of a step, in order (the JSON keys the PyTorch peer uses).
@@ -145,7 +144,7 @@ nlohmann::json run_torch(TorchPeer& peer, const BenchCotrainArgs& a,
   const std::string shown_args =
       " bench --batch " + std::to_string(a.batch) + " --window " + std::to_string(a.window) +
       " --classes " + std::to_string(a.classes) + " --lambda " + std::to_string(a.lambda) +
-      " --threads " + std::to_string(a.threads) + " --repeat " + std::to_string(a.repeat) +
+      " --threads " + std::to_string(a.peer.threads) + " --repeat " + std::to_string(a.repeat) +
       " --seed " + std::to_string(a.seed) + " --restorer ";
   return peer.run("bench cotrain",
                   shown_args + shell_quote(a.restorer) + " --thetas " + csv(thetas),
@@ -261,7 +260,7 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
   if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
   if (a.restorer.empty()) a.restorer = jr2::default_restorer_path().string();
   check_input_file(a.restorer, "--restorer");
-  TorchPeer torch(a.torch, a.python, a.torch_script);
+  TorchPeer torch(a.peer);
   const Device device = open_device(a.device);
   const std::vector<float> thetas = make_thetas(a.batch, a.window, a.seed);
 
@@ -327,7 +326,7 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
   const double step_s = median(times.step_s);
   const double torch_step_s = torch.available ? torch_result.at("step_s").get<double>() : 0;
   const std::string torch_name = torch.available
-                                     ? "PyTorch CPU, " + std::to_string(a.threads) + " threads"
+                                     ? "PyTorch CPU, " + std::to_string(a.peer.threads) + " threads"
                                      : "PyTorch (unavailable)";
 
   std::vector<bench::Result> rows;
@@ -404,8 +403,8 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
     std::printf(
         "PyTorch peer: torch %s, %d threads, the restorer's weights from the same file, "
         "recognizer float32 (%s)\n",
-        torch_result.value("torch", std::string("?")).c_str(), a.threads,
-        (a.python + " " + a.torch_script + " bench").c_str());
+        torch_result.value("torch", std::string("?")).c_str(), a.peer.threads,
+        (a.peer.python + " " + a.peer.script + " bench").c_str());
   } else {
     std::printf("PyTorch peer: %s\n", torch.reason.c_str());
   }
@@ -488,12 +487,7 @@ int run(int argc, char** argv) {
       ->default_val(a.repeat)
       ->check(integer_range(1, 1000));
   add_seed_option(&app, a.seed, "Seed of the clips, the thetas and the head", a.seed);
-  app.add_option("--threads", a.threads, "PyTorch peer's threads (torch.set_num_threads)")
-      ->default_val(a.threads)
-      ->check(integer_range(1, 1024));
-  app.add_flag("!--no-torch", a.torch, "Skip the PyTorch peer");
-  app.add_option("--python", a.python, "The Python that has torch")->default_val(a.python);
-  app.add_option("--torch-script", a.torch_script, "The PyTorch peer's script");
+  add_torch_peer_options(app, a.peer);
   app.add_option("--device", a.device, "Vulkan device index or name substring (else VKJR2_DEVICE)");
   app.add_option("--json-file", a.json_path, "Also write the results as JSON here");
   app.add_flag("--json", a.json_out, "Print the JSON after the table");

@@ -48,10 +48,10 @@ constexpr double kTorchGoal = 0.50;  // vkjr2 / PyTorch on the CPU, on lavapipe
 struct BenchRestoreArgs {
   int frames = 8, width = 16, middle = 1, size = 160;
   int train_size = jr2::RestoreTrainOptions{}.crop, batch = jr2::RestoreTrainOptions{}.batch;
-  int repeat = 5, threads = 2;
-  std::string enc = "1,1,1", dec = "1,1,1", device, json_path, python = "/usr/bin/python3",
-              torch_script = std::string(VKJR2_SOURCE_DIR) + "/tools/restorer_torch.py";
-  bool torch = true, json_out = false;
+  int repeat = 5;
+  std::string enc = "1,1,1", dec = "1,1,1", device, json_path;
+  TorchPeerOptions peer{.script = std::string(VKJR2_SOURCE_DIR) + "/tools/restorer_torch.py"};
+  bool json_out = false;
 };
 
 std::vector<float> uniform(std::int64_t n, std::uint32_t seed) {
@@ -77,7 +77,7 @@ nlohmann::json run_torch(TorchPeer& peer, const BenchRestoreArgs& a, int size, i
       " bench --frames " + std::to_string(a.frames) + " --width " + std::to_string(a.width) +
       " --enc " + a.enc + " --middle " + std::to_string(a.middle) + " --dec " + a.dec + " --size " +
       std::to_string(size) + " --batch " + std::to_string(batch) + " --threads " +
-      std::to_string(a.threads) + " --repeat " + std::to_string(a.repeat);
+      std::to_string(a.peer.threads) + " --repeat " + std::to_string(a.repeat);
   return peer.run("bench restore", args, args, {"infer_s", "train_step_s"});
 }
 
@@ -110,7 +110,7 @@ void run_bench_restore(BenchRestoreArgs& a) {
                            ", so that both peers run the same shapes unpadded");
     }
   }
-  TorchPeer torch(a.torch, a.python, a.torch_script);
+  TorchPeer torch(a.peer);
   const Device device = open_device(a.device);
   const std::int64_t t3 = 3LL * config.frames;
   const double infer_flops = config.flops(a.size, a.size);
@@ -182,7 +182,7 @@ void run_bench_restore(BenchRestoreArgs& a) {
   const double infer_gflops = infer_flops / infer_s * 1e-9;
   const double train_gflops = train_flops / train_s * 1e-9;
   const std::string torch_name = torch.available
-                                     ? "PyTorch CPU, " + std::to_string(a.threads) + " threads"
+                                     ? "PyTorch CPU, " + std::to_string(a.peer.threads) + " threads"
                                      : "PyTorch (unavailable)";
   const std::string size_tag = std::to_string(a.size) + "²";
   const std::string train_tag = std::to_string(a.train_size) + "²";
@@ -260,8 +260,8 @@ void run_bench_restore(BenchRestoreArgs& a) {
       a.repeat);
   if (torch.available) {
     std::printf("PyTorch peer: torch %s, %d threads (%s ...)\n",
-                torch_infer.value("torch", std::string("?")).c_str(), a.threads,
-                (a.python + " " + a.torch_script + " bench").c_str());
+                torch_infer.value("torch", std::string("?")).c_str(), a.peer.threads,
+                (a.peer.python + " " + a.peer.script + " bench").c_str());
   } else {
     std::printf("PyTorch peer: %s\n", torch.reason.c_str());
   }
@@ -361,12 +361,7 @@ int run(int argc, char** argv) {
   app.add_option("--repeat", a.repeat, "Timed runs of each (median), after one warm-up")
       ->default_val(a.repeat)
       ->check(integer_range(1, 1000));
-  app.add_option("--threads", a.threads, "PyTorch peer's threads (torch.set_num_threads)")
-      ->default_val(a.threads)
-      ->check(integer_range(1, 1024));
-  app.add_flag("!--no-torch", a.torch, "Skip the PyTorch peer");
-  app.add_option("--python", a.python, "The Python that has torch")->default_val(a.python);
-  app.add_option("--torch-script", a.torch_script, "The PyTorch peer's script");
+  add_torch_peer_options(app, a.peer);
   app.add_option("--device", a.device, "Vulkan device index or name substring (else VKJR2_DEVICE)");
   app.add_option("--json-file", a.json_path, "Also write the results as JSON here");
   app.add_flag("--json", a.json_out, "Print the JSON after the table");

@@ -5,6 +5,7 @@
 
 #include <vkjr2/runtime/error.hpp>
 
+#include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -16,6 +17,8 @@
 #include <string>
 #include <utility>
 
+#include "cli/checks.hpp"
+
 namespace vkjr2::cli {
 
 inline std::string shell_quote(const std::string& s) {
@@ -24,12 +27,29 @@ inline std::string shell_quote(const std::string& s) {
   return q + "'";
 }
 
+// The options every PyTorch peer takes: --threads, --no-torch, --python,
+// --torch-script (default: `script`).
+struct TorchPeerOptions {
+  int threads = 2;
+  bool enabled = true;
+  std::string python = "/usr/bin/python3";
+  std::string script;
+};
+
+inline void add_torch_peer_options(CLI::App& app, TorchPeerOptions& o) {
+  app.add_option("--threads", o.threads, "PyTorch peer's threads (torch.set_num_threads)")
+      ->default_val(o.threads)
+      ->check(integer_range(1, 1024));
+  app.add_flag("!--no-torch", o.enabled, "Skip the PyTorch peer");
+  app.add_option("--python", o.python, "The Python that has torch")->default_val(o.python);
+  app.add_option("--torch-script", o.script, "The PyTorch peer's script");
+}
+
 class TorchPeer {
  public:
   // enabled: false with --no-torch. python must import torch and script exist.
-  TorchPeer(bool enabled, std::string python, std::string script)
-      : python_(std::move(python)), script_(std::move(script)) {
-    if (!enabled) {
+  explicit TorchPeer(const TorchPeerOptions& o) : python_(o.python), script_(o.script) {
+    if (!o.enabled) {
       reason = "skipped (--no-torch)";
       return;
     }
