@@ -283,6 +283,7 @@ json result_json(const Measured& m) {
   j["raw_d_over_r0"] = m.estimate.raw_d_over_r0;
   j["tilt_variance_px2"] = m.estimate.tilt.variance_px2;
   j["tilt_lag1_covariance_px2"] = m.estimate.tilt.lag1_covariance_px2;
+  j["tilt_mean_variance_px2"] = m.estimate.tilt.mean_variance_px2;
   j["coverage"] = m.estimate.tilt.coverage;
   j["frames"] = m.estimate.tilt.frames;
   if (m.item.truth > 0) {

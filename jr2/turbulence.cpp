@@ -151,6 +151,8 @@ TiltMeasure tilt_statistics(std::span<const float> flow, int frames, int height,
   const std::int64_t t = frames, h = height, w = width;
   double sum = 0, sum_lag1 = 0;
   std::size_t used = 0;
+  std::vector<double> per_pixel;
+  per_pixel.reserve(plane);
   for (std::int64_t y = options.border; y < h - options.border; ++y) {
     for (std::int64_t x = options.border; x < w - options.border; ++x) {
       const std::size_t p = std::size_t(y * w + x);
@@ -172,6 +174,7 @@ TiltMeasure tilt_statistics(std::span<const float> flow, int frames, int height,
       }
       sum += 0.5 * var;
       sum_lag1 += 0.5 * lag1;
+      per_pixel.push_back(0.5 * var);
       ++used;
     }
   }
@@ -189,8 +192,13 @@ TiltMeasure tilt_statistics(std::span<const float> flow, int frames, int height,
     throw InvalidArgument(op, "the registration gave a non-finite displacement",
                           "check the video: its frames must be finite numbers");
   }
-  out.variance_px2 = sum / double(used);
+  out.mean_variance_px2 = sum / double(used);
   out.lag1_covariance_px2 = sum_lag1 / double(used);
+  // The median: turbulence moves every pixel, a walking person or a car a
+  // minority of them, whose variance would dominate the mean.
+  const auto mid = per_pixel.begin() + std::ptrdiff_t(per_pixel.size() / 2);
+  std::nth_element(per_pixel.begin(), mid, per_pixel.end());
+  out.variance_px2 = *mid;
   return out;
 }
 

@@ -1,13 +1,14 @@
-// Turbulence strength from the footage alone (docs/jr2.md, "Estimating the
-// turbulence"): D/r0 of a video from its frame-to-frame tilt.
+// Turbulence strength from the footage alone (docs/jr2.md §7): D/r0 of a
+// video from its frame-to-frame tilt.
 //
-// The frames are registered against their mean by dense Lucas–Kanade
-// (kernels/flow.hpp), twice: the second pass against the mean of the frames
-// warped back by the first, which is sharper. The per-pixel temporal
-// variance of the displacement, averaged over both axes and over the pixels
-// whose window has enough texture, is the tilt variance σ²
-// (pixels², one axis). The Z-tilt formula σ²_θ = 0.182 (λ/D)² (D/r0)^(5/3)
-// (sim/tilt.hpp) with the optics' pixel scale turns it into a raw D/r0.
+// The frames are registered against their mean by dense optical flow
+// (OpenCV's DIS in the command runner; here, measure_tilt: the Lucas–Kanade
+// kernel of kernels/flow.hpp, twice, the second pass against the mean of the
+// frames warped back by the first). The per-pixel temporal variance of the
+// displacement, averaged over both axes, its median over the pixels whose
+// window has enough texture, is the tilt variance σ² (pixels², one axis).
+// The Z-tilt formula σ²_θ = 0.182 (λ/D)² (D/r0)^(5/3) (sim/tilt.hpp) with the
+// optics' pixel scale turns it into a raw D/r0.
 // A variance about the mean of T correlated frames is short of the true one by
 // the factor 1 − (1/T)(1 + 2 Σ_k (1 − k/T) ρ^k) for an AR(1) tilt of
 // frame-to-frame correlation ρ; the raw value is corrected by it. A
@@ -40,14 +41,17 @@ struct TiltOptions {
 
 struct TiltMeasure {
   int frames = 0;
-  double variance_px2 = 0;         // one-axis temporal variance of the displacement, pixels²
-  double lag1_covariance_px2 = 0;  // its covariance between consecutive frames
+  // The one-axis temporal variance of the displacement, pixels²: the median
+  // over the pixels used (robust to a moving object in part of the frame).
+  double variance_px2 = 0;
+  double mean_variance_px2 = 0;    // the mean over the pixels used
+  double lag1_covariance_px2 = 0;  // the mean covariance between consecutive frames
   double coverage = 0;             // share of the frame's pixels used
 };
 
 // The tilt statistics of displacement fields flow [T, 2, H, W] (planar,
 // pixels; frame t moved by flow_t registers onto the reference): the
-// one-axis temporal variance and lag-1 covariance per pixel, averaged over
+// one-axis temporal variance and lag-1 covariance per pixel, over
 // the pixels at least options.border from the edge whose texture[p]
 // (the smaller eigenvalue of the reference's structure tensor, as
 // texture_map gives it) reaches options.min_eigenvalue. Throws

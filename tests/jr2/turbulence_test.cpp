@@ -93,6 +93,21 @@ TEST(Jr2Turbulence, MeasuresTheVarianceOfKnownShifts) {
   EXPECT_EQ(got.frames, t);
   EXPECT_GT(got.coverage, 0.5);
   EXPECT_NEAR(got.variance_px2, want, 0.05 * want) << "shift variance " << want << " px²";
+  EXPECT_NEAR(got.mean_variance_px2, want, 0.05 * want);
+  // A bright square wandering over a fifth of the frame (a moving object):
+  // the mean over the pixels follows it, the median (the estimate) does not.
+  std::uniform_int_distribution<int> jump(-6, 6);
+  for (int f = 0; f < t; ++f) {
+    const int ox = 30 + jump(rng), oy = 22 + jump(rng);
+    for (int y = oy; y < oy + 14; ++y) {
+      for (int x = ox; x < ox + 14; ++x) {
+        frames[(std::size_t(f) * h + y) * w + x] = float(0.9 + 0.05 * std::sin(0.9 * (x - ox)));
+      }
+    }
+  }
+  const TiltMeasure moved = measure_tilt(s, Tensor::from(dev, {t, 1, h, w}, frames));
+  EXPECT_NEAR(moved.variance_px2, want, 0.15 * want) << "median with a moving object";
+  EXPECT_GT(moved.mean_variance_px2, 1.5 * want) << "the mean is pulled by the object";
 }
 
 // A simulated video: the registration finds the simulator's own tilt
