@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <string>
@@ -85,6 +86,22 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
                      one["raw_d_over_r0"].get<double>());
   }
   EXPECT_GT(strong, weak);
+
+  // The optics of --config set the pixel scale: twice the focal length halves
+  // the angle of a pixel, so the same tilt in pixels is 4^(3/5) less D/r0.
+  fs::path video;
+  for (const auto& e : fs::directory_iterator(bench / "probes" / "test" / "strong")) {
+    if (e.path().extension() == ".avi") video = e.path();
+  }
+  const fs::path config = tmp.path / "optics.yaml";
+  std::ofstream(config) << "optics:\n  focal_length_m: 3.2\n";
+  r = run_cli("estimate " + video.string() + " --raw --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const double at_preset = parse_json(r.output)["raw_d_over_r0"].get<double>();
+  r = run_cli("estimate " + video.string() + " --raw --json --config " + config.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_NEAR(parse_json(r.output)["raw_d_over_r0"].get<double>(), at_preset * std::pow(4.0, -0.6),
+              1e-9 * at_preset);
 }
 
 TEST(CliEstimate, BadInputIsAClearError) {
