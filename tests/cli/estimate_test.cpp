@@ -142,3 +142,29 @@ TEST(CliEstimate, BadInputIsAClearError) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(CliBenchEstimate, ComparesTheRegistrationsWithTheExactTilt) {
+  TempDir tmp("bench_estimate");
+  const fs::path out = tmp.path / "bench.json";
+  auto r = run_cli(
+      "bench estimate --videos 2 --strengths 2 --frames 6 --size 48 --quiet "
+      "--json-file " +
+      out.string());
+  ASSERT_EQ(r.code, 0) << r.output;
+  std::ifstream f(out);
+  const json j = json::parse(f, nullptr, false);
+  ASSERT_TRUE(j.is_object()) << r.output;
+  ASSERT_EQ(j["results"].size(), 3u) << j.dump();
+  for (const json& row : j["results"]) {
+    EXPECT_GT(row["value"].get<double>(), 0.0) << row.dump();
+    EXPECT_GT(row["peer_value"].get<double>(), 0.0) << row.dump();
+  }
+  ASSERT_EQ(j["videos"].size(), 2u);
+  EXPECT_GT(j["videos"][0]["exact_variance_px2"].get<double>(), 0.0);
+  r = run_cli("bench estimate --videos 1");
+  EXPECT_EQ(r.code, 2) << r.output;
+}
+
+}  // namespace
