@@ -101,19 +101,11 @@ void run_bench_estimate(const BenchEstimateArgs& a) {
   for (double d : a.strengths) {
     const sim::Params params = jr2::probe_sim_params(d, s);
     for (int v = 0; v < a.videos; ++v) {
-      sim::Simulator simulator(device, params, blur, jr2::probe_sim_options());
-      simulator.reset(1000 + std::uint64_t(v));
-      const Tensor y = Tensor::empty(device, {1, 3, s, s});
-      std::vector<float> grey, flows;
+      jr2::SimulatedVideo video = jr2::simulate_video(device, x, params, jr2::probe_sim_options(),
+                                                      blur, 1000 + std::uint64_t(v), t);
+      std::vector<float>& grey = video.grey;  // cv::Mat wraps it (read only)
+      const std::vector<float>& flows = video.flow;
       Stream stream(device);
-      for (int f = 0; f < t; ++f) {
-        simulator.frame(stream, x, y);
-        stream.run();
-        const auto g = jr2::grey_frames(y.download(), 1, 3, s, s, 1.f);
-        grey.insert(grey.end(), g.begin(), g.end());
-        const auto fl = simulator.flow().download();  // the warp's sampling offset
-        flows.insert(flows.end(), fl.begin(), fl.end());
-      }
       const double exact = tilt_variance(flows, t, s, options.border);
       // Ours, on the device (upload included).
       jr2::TiltMeasure ours;

@@ -417,6 +417,30 @@ std::vector<float> grey_frames(std::span<const float> rgb, int frames, int chann
   return out;
 }
 
+SimulatedVideo simulate_video(const Device& device, const Tensor& scene, const sim::Params& params,
+                              const sim::SimOptions& options,
+                              const std::vector<std::shared_ptr<const sim::BlurModel>>& blur,
+                              std::uint64_t seed, int frames) {
+  const Shape& s = scene.shape();
+  SimulatedVideo v;
+  v.frames = frames;
+  v.height = int(s[2]);
+  v.width = int(s[3]);
+  sim::Simulator simulator(device, params, blur, options);
+  simulator.reset(seed);
+  const Tensor y = Tensor::empty(device, s);
+  Stream stream(device);
+  for (int f = 0; f < frames; ++f) {
+    simulator.frame(stream, scene, y);
+    stream.run();
+    const std::vector<float> g = grey_frames(y.download(), 1, int(s[1]), v.height, v.width, 1.f);
+    v.grey.insert(v.grey.end(), g.begin(), g.end());
+    const std::vector<float> fl = simulator.flow().download();
+    v.flow.insert(v.flow.end(), fl.begin(), fl.end());
+  }
+  return v;
+}
+
 std::filesystem::path default_turbulence_calibration_path() {
   return sim::default_blur_model_path().parent_path() / "turbulence_estimator.safetensors";
 }

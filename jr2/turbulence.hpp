@@ -18,7 +18,9 @@
 #pragma once
 
 #include <vkjr2/runtime/stream.hpp>
+#include <vkjr2/sim/blur_model.hpp>
 #include <vkjr2/sim/params.hpp>
+#include <vkjr2/sim/simulator.hpp>
 
 #include <cstdint>
 #include <filesystem>
@@ -121,6 +123,20 @@ TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<con
 // [T, C, H, W] host pixels in 0..range → [T, 1, H, W] 0..1.
 std::vector<float> grey_frames(std::span<const float> rgb, int frames, int channels, int height,
                                int width, float range = 255.f);
+
+// A simulated video with the tilt it was made with, for checking and
+// calibrating estimates: `frames` frames of `scene` ([1, C, H, W], 0..1)
+// through the simulator (params, options, the shipped or given blur models)
+// from `seed`; grey [T, H, W] (0..1) and the simulator's own flow maps
+// [T, 2, H, W] (the warp's sampling offsets, pixels).
+struct SimulatedVideo {
+  int frames = 0, height = 0, width = 0;
+  std::vector<float> grey, flow;
+};
+SimulatedVideo simulate_video(const Device& device, const Tensor& scene, const sim::Params& params,
+                              const sim::SimOptions& options,
+                              const std::vector<std::shared_ptr<const sim::BlurModel>>& blur,
+                              std::uint64_t seed, int frames);
 
 // The shipped calibration (artifacts/turbulence_estimator.safetensors).
 std::filesystem::path default_turbulence_calibration_path();

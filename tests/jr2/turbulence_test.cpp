@@ -122,20 +122,11 @@ TEST(Jr2Turbulence, FindsTheSimulatorsTilt) {
   const auto blur = sim::load_shipped_blur_models(dev);
   double previous_raw = 0;
   for (double d_over_r0 : {2.0, 6.0}) {
-    sim::Simulator simulator(dev, probe_sim_params(d_over_r0, size), blur, probe_sim_options());
-    simulator.reset(7);
-    const Tensor y = Tensor::empty(dev, {1, 3, size, size});
-    std::vector<float> frames, flows;
+    const SimulatedVideo video =
+        simulate_video(dev, x, probe_sim_params(d_over_r0, size), probe_sim_options(), blur, 7, t);
+    const std::vector<float>& frames = video.grey;
+    const std::vector<float>& flows = video.flow;
     Stream s(dev);
-    for (int f = 0; f < t; ++f) {
-      simulator.frame(s, x, y);
-      s.run();
-      const auto v = y.download();
-      const auto g = grey_frames(v, 1, 3, size, size, 1.f);
-      frames.insert(frames.end(), g.begin(), g.end());
-      const auto fl = simulator.flow().download();
-      flows.insert(flows.end(), fl.begin(), fl.end());
-    }
     const TiltOptions o;
     const double truth = mean_temporal_variance(flows, t, size, size, o.border);
     const TiltMeasure got = measure_tilt(s, Tensor::from(dev, {t, 1, size, size}, frames), o);
