@@ -445,8 +445,7 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
   }
   out["goals"] = {{"ratio_vs_torch_on_lavapipe", kTorchGoal}};
   if (lavapipe && torch.available) out["goals"]["torch_met"] = ratio >= kTorchGoal;
-  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
+  bench::emit_json(out, a.json_path, a.json_out);
 }
 
 }  // namespace

@@ -178,8 +178,7 @@ void run_bench_estimate(const BenchEstimateArgs& a) {
       t, s);
   nlohmann::json out = bench::to_json(device, rows);
   out["videos"] = per;
-  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
+  bench::emit_json(out, a.json_path, a.json_out);
 }
 
 }  // namespace

@@ -135,4 +135,11 @@ inline void write_json(const std::string& path, const nlohmann::json& j) {
   }
 }
 
+// The end of every benchmark run: the JSON written to `path` (when given)
+// and printed after the table (with --json).
+inline void emit_json(const nlohmann::json& j, const std::string& path, bool print) {
+  if (!path.empty()) write_json(path, j);
+  if (print) std::printf("%s\n", j.dump(2).c_str());
+}
+
 }  // namespace vkjr2::bench

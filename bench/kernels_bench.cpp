@@ -32,8 +32,7 @@ void run(const Args& a) {
       vkjr2::bench::run_kernel_cases(device, a.only, a.full, "bench kernels");
   vkjr2::bench::print_kernels_table(device, run);
   const nlohmann::json out = vkjr2::bench::kernels_json(device, run);
-  if (!a.json_path.empty()) vkjr2::bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
+  vkjr2::bench::emit_json(out, a.json_path, a.json_out);
 }
 
 }  // namespace

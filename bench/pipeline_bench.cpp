@@ -258,8 +258,7 @@ void run_bench_pipeline(const PipelineArgs& a) {
   j["sampled_frames"] = probes.front().sampled.size();
   j["runs"] = a.runs;
   j["tfjs"] = tfjs.available() ? tfjs.about() : json(tfjs.reason());
-  if (!a.json_path.empty()) bench::write_json(a.json_path, j);
-  if (a.json_out) std::printf("%s\n", j.dump(2).c_str());
+  bench::emit_json(j, a.json_path, a.json_out);
 }
 
 }  // namespace

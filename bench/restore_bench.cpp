@@ -308,8 +308,7 @@ void run_bench_restore(BenchRestoreArgs& a) {
     out["goals"]["inference_torch_met"] = infer_ratio >= kTorchGoal;
     out["goals"]["training_torch_met"] = train_ratio >= kTorchGoal;
   }
-  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
+  bench::emit_json(out, a.json_path, a.json_out);
 }
 
 }  // namespace

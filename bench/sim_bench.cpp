@@ -178,8 +178,7 @@ void run_bench_sim(const BenchSimArgs& a) {
                            {"fftw_seconds", fftw_seconds},
                            {"fftw_seconds_per_source", per_source_fftw},
                            {"fftw_threads", 1}};
-  if (!a.json_path.empty()) bench::write_json(a.json_path, out);
-  if (a.json_out) std::printf("%s\n", out.dump(2).c_str());
+  bench::emit_json(out, a.json_path, a.json_out);
 }
 
 }  // namespace
