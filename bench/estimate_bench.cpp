@@ -15,8 +15,6 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
-#include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -27,6 +25,7 @@
 #include "cli/checks.hpp"
 #include "cli/log.hpp"
 #include "cli/progress.hpp"
+#include "cli/registration.hpp"
 #include "cli/run.hpp"
 #include "harness.hpp"
 
@@ -88,11 +87,8 @@ void run_bench_estimate(const BenchEstimateArgs& a) {
   const Device device = open_device(a.device);
   const auto blur = sim::load_shipped_blur_models(device);
   const int t = a.frames, s = a.size;
-  const std::size_t plane = std::size_t(s) * s;
   const Tensor x = Tensor::from(device, {1, 3, s, s}, scene(s));
   const jr2::TiltOptions& options = a.tilt;
-  const cv::Ptr<cv::DISOpticalFlow> dis =
-      cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM);
   double ours_seconds = 0, dis_seconds = 0;
   std::vector<double> ours_err, dis_err;       // |measured / exact − 1| of the tilt variance
   std::vector<double> exact_ratio, dis_ratio;  // raw D/r0 / true D/r0
@@ -101,9 +97,9 @@ void run_bench_estimate(const BenchEstimateArgs& a) {
   for (double d : a.strengths) {
     const sim::Params params = jr2::probe_sim_params(d, s);
     for (int v = 0; v < a.videos; ++v) {
-      jr2::SimulatedVideo video = jr2::simulate_video(device, x, params, jr2::probe_sim_options(),
-                                                      blur, 1000 + std::uint64_t(v), t);
-      std::vector<float>& grey = video.grey;  // cv::Mat wraps it (read only)
+      const jr2::SimulatedVideo video = jr2::simulate_video(
+          device, x, params, jr2::probe_sim_options(), blur, 1000 + std::uint64_t(v), t);
+      const std::vector<float>& grey = video.grey;
       const std::vector<float>& flows = video.flow;
       Stream stream(device);
       const double exact = tilt_variance(flows, t, s, options.border);
@@ -113,27 +109,8 @@ void run_bench_estimate(const BenchEstimateArgs& a) {
         ours = jr2::measure_tilt(stream, Tensor::from(device, {t, 1, s, s}, grey), options);
       });
       // OpenCV DIS: every frame against the 8-bit mean, as ours registers.
-      std::vector<float> dis_flow(std::size_t(t) * 2 * plane);
-      dis_seconds += bench::seconds_of([&] {
-        cv::Mat mean(s, s, CV_32F, cv::Scalar(0));
-        for (int f = 0; f < t; ++f) {
-          mean += cv::Mat(s, s, CV_32F, grey.data() + std::size_t(f) * plane);
-        }
-        cv::Mat mean8, frame8, flow;
-        mean.convertTo(mean8, CV_8U, 255.0 / t);
-        for (int f = 0; f < t; ++f) {
-          cv::Mat(s, s, CV_32F, grey.data() + std::size_t(f) * plane)
-              .convertTo(frame8, CV_8U, 255.0);
-          dis->calc(mean8, frame8, flow);
-          for (int yy = 0; yy < s; ++yy) {
-            for (int xx = 0; xx < s; ++xx) {
-              const cv::Vec2f fv = flow.at<cv::Vec2f>(yy, xx);
-              dis_flow[std::size_t(2 * f) * plane + std::size_t(yy) * s + xx] = fv[0];
-              dis_flow[std::size_t(2 * f + 1) * plane + std::size_t(yy) * s + xx] = fv[1];
-            }
-          }
-        }
-      });
+      std::vector<float> dis_flow;
+      dis_seconds += bench::seconds_of([&] { dis_flow = dis_register(grey, t, s, s).flow; });
       const double dis_var = tilt_variance(dis_flow, t, s, options.border);
       ours_err.push_back(std::abs(ours.variance_px2 / exact - 1));
       dis_err.push_back(std::abs(dis_var / exact - 1));
@@ -153,8 +130,7 @@ void run_bench_estimate(const BenchEstimateArgs& a) {
   }
   bar.done();
   const double n = double(per.size());
-  const std::string dis_name =
-      "OpenCV DIS (medium, " + std::to_string(cv::getNumThreads()) + " threads)";
+  const std::string dis_name = "OpenCV DIS (medium, " + std::to_string(dis_threads()) + " threads)";
   std::vector<bench::Result> rows;
   rows.push_back(
       {"lk registration, one video (" + std::to_string(t) + "×" + std::to_string(s) + "²)",

@@ -9,8 +9,6 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
-#include <opencv2/core.hpp>
-#include <opencv2/video/tracking.hpp>
 
 #include <algorithm>
 #include <cmath>
@@ -26,6 +24,7 @@
 #include "log.hpp"
 #include "media.hpp"
 #include "progress.hpp"
+#include "registration.hpp"
 #include "sim_common.hpp"
 
 namespace vkjr2::cli {
@@ -156,54 +155,10 @@ GreyVideo load_frames(const Item& item, const jr2::ClipSet* set, int max_frames)
 // frames' 8-bit mean, as the flow jr2::tilt_statistics reads: frame t moved by
 // flow_t(x) registers onto the mean.
 jr2::TiltMeasure measure_dis(const GreyVideo& g, const jr2::TiltOptions& options) {
-  const int t = g.frames, h = g.height, w = g.width;
-  if (t < 2) {
-    throw InvalidArgument("turbulence estimate",
-                          "a video of " + std::to_string(t) + " frame has no tilt to measure",
-                          "give at least 2 frames (30 for a stable estimate)");
-  }
-  const int inner = 2 * (options.border + 1);
-  if (h < inner || w < inner) {
-    throw InvalidArgument(
-        "turbulence estimate",
-        "frames of " + std::to_string(w) + "×" + std::to_string(h) +
-            " px leave nothing inside the " + std::to_string(options.border) + " px border",
-        "use frames larger than " + std::to_string(inner) + " px or a smaller border");
-  }
-  const std::size_t plane = std::size_t(h) * std::size_t(w);
-  const auto bad =
-      std::find_if(g.pixels.begin(), g.pixels.end(), [](float v) { return !std::isfinite(v); });
-  if (bad != g.pixels.end()) {
-    throw InvalidArgument("turbulence estimate",
-                          "frame " + std::to_string(std::size_t(bad - g.pixels.begin()) / plane) +
-                              " holds a non-finite pixel",
-                          "check the video: its pixels must be numbers");
-  }
-  std::vector<float> mean(plane, 0.f);
-  for (int f = 0; f < t; ++f) {
-    for (std::size_t p = 0; p < plane; ++p) mean[p] += g.pixels[std::size_t(f) * plane + p];
-  }
-  for (float& v : mean) v /= float(t);
-  cv::Mat mean8, frame8, flow;
-  cv::Mat(h, w, CV_32F, mean.data()).convertTo(mean8, CV_8U, 255.0);
-  const cv::Ptr<cv::DISOpticalFlow> dis =
-      cv::DISOpticalFlow::create(cv::DISOpticalFlow::PRESET_MEDIUM);
-  std::vector<float> flows(std::size_t(t) * 2 * plane);
-  for (int f = 0; f < t; ++f) {
-    // const_cast: cv::Mat wraps the pixels read-only here (convertTo reads).
-    cv::Mat(h, w, CV_32F, const_cast<float*>(g.pixels.data() + std::size_t(f) * plane))
-        .convertTo(frame8, CV_8U, 255.0);
-    dis->calc(mean8, frame8, flow);
-    for (int y = 0; y < h; ++y) {
-      const auto* row = flow.ptr<cv::Vec2f>(y);
-      for (int x = 0; x < w; ++x) {
-        flows[std::size_t(2 * f) * plane + std::size_t(y) * w + x] = row[x][0];
-        flows[std::size_t(2 * f + 1) * plane + std::size_t(y) * w + x] = row[x][1];
-      }
-    }
-  }
-  return jr2::tilt_statistics(flows, t, h, w, jr2::texture_map(mean, h, w, options.radius),
-                              options);
+  jr2::check_grey_video(g.pixels, g.frames, g.height, g.width, options);
+  const DisRegistration r = dis_register(g.pixels, g.frames, g.height, g.width);
+  return jr2::tilt_statistics(r.flow, g.frames, g.height, g.width,
+                              jr2::texture_map(r.mean, g.height, g.width, options.radius), options);
 }
 
 jr2::TiltMeasure measure(const Device& device, const GreyVideo& g,

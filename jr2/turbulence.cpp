@@ -79,6 +79,33 @@ void TiltOptions::validate() const {
   }
 }
 
+void check_grey_video(std::span<const float> pixels, int frames, int height, int width,
+                      const TiltOptions& options) {
+  const char* op = "turbulence estimate";
+  if (frames < 2) {
+    throw InvalidArgument(op,
+                          "a video of " + std::to_string(frames) + " frame has no tilt to measure",
+                          "give at least 2 frames (30 for a stable estimate)");
+  }
+  const int inner = 2 * (options.border + 1);
+  if (height < inner || width < inner) {
+    throw InvalidArgument(
+        op,
+        "frames of " + std::to_string(width) + "×" + std::to_string(height) +
+            " px leave nothing inside the " + std::to_string(options.border) + " px border",
+        "use frames larger than " + std::to_string(inner) + " px or a smaller border");
+  }
+  const std::size_t plane = std::size_t(height) * std::size_t(width);
+  const auto bad =
+      std::find_if(pixels.begin(), pixels.end(), [](float x) { return !std::isfinite(x); });
+  if (bad != pixels.end()) {
+    throw InvalidArgument(op,
+                          "frame " + std::to_string(std::size_t(bad - pixels.begin()) / plane) +
+                              " holds a non-finite pixel",
+                          "check the video: its pixels must be numbers");
+  }
+}
+
 TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions& options) {
   options.validate();
   const char* op = "turbulence estimate";
@@ -88,27 +115,7 @@ TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions
                           "convert the video with jr2::grey_frames");
   }
   const std::int64_t t = fs[0], h = fs[2], w = fs[3];
-  if (t < 2) {
-    throw InvalidArgument(op, "a video of " + std::to_string(t) + " frame has no tilt to measure",
-                          "give at least 2 frames (30 for a stable estimate)");
-  }
-  const std::int64_t inner = 2 * (options.border + 1);
-  if (h < inner || w < inner) {
-    throw InvalidArgument(
-        op,
-        "frames of " + std::to_string(w) + "×" + std::to_string(h) +
-            " px leave nothing inside the " + std::to_string(options.border) + " px border",
-        "use frames larger than " + std::to_string(inner) + " px or a smaller border");
-  }
-  {
-    const std::vector<float> v = frames.download();
-    const auto bad = std::find_if(v.begin(), v.end(), [](float x) { return !std::isfinite(x); });
-    if (bad != v.end()) {
-      throw InvalidArgument(
-          op, "frame " + std::to_string((bad - v.begin()) / (h * w)) + " holds a non-finite pixel",
-          "check the video: its pixels must be numbers");
-    }
-  }
+  check_grey_video(frames.download(), int(t), int(h), int(w), options);
   const Device& dev = stream.device();
   const Shape flow_shape{t, 2, h, w};
   Tensor a = Tensor::empty(dev, flow_shape), b = Tensor::empty(dev, flow_shape);

@@ -66,6 +66,12 @@ TiltMeasure tilt_statistics(std::span<const float> flow, int frames, int height,
 // (2·radius + 1)² window clipped to the image, of a grey image (0..1).
 std::vector<float> texture_map(std::span<const float> image, int height, int width, int radius);
 
+// The checks every tilt measurement makes of T grey frames (T×H×W, 0..1):
+// at least 2 frames, larger than the border on both sides, every pixel
+// finite. Throws InvalidArgument naming the fault and the fix.
+void check_grey_video(std::span<const float> pixels, int frames, int height, int width,
+                      const TiltOptions& options);
+
 // Measures the tilt of T grey frames ([T, 1, H, W], 0..1, T ≥ 2) on the
 // stream's device by the Lucas–Kanade kernel (kernels/flow.hpp). Throws InvalidArgument for a frame
 // smaller than the border and window, fewer than 2 frames, a non-finite pixel, or a video without
