@@ -22,6 +22,7 @@ void add_demo(CLI::App& app);           // demo.cpp: the turbulence-vs-recogniti
 void add_eval(CLI::App& app);           // eval.cpp: the JR² evaluation of a benchmark
 void add_cotrain(CLI::App& app);        // cotrain.cpp: JR² co-optimization
 void add_estimate(CLI::App& app);       // estimate.cpp: estimate, estimate-train
+void add_gate(CLI::App& app);           // gate.cpp: gate train
 
 // bench.cpp: `vkjr2 bench NAME ARGS...` runs NAME's program with ARGS (argv,
 // argc of them) in place of this process; returns 1 after printing the error

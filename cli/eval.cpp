@@ -36,6 +36,7 @@
 #include "log.hpp"
 #include "media.hpp"
 #include "plot.hpp"
+#include "probe_run.hpp"
 #include "progress.hpp"
 
 namespace vkjr2::cli {
@@ -56,55 +57,25 @@ struct EvalArgs {
 
 constexpr std::array<const char*, 6> kOutputs = {"results.json", "report.md", "scores.csv",
                                                  "roc.png",      "cmc.png",   "fnir_fpir.png"};
-// Frames the classical peer averages (the restorer's default T).
-constexpr int kClassicalFrames = 8;
-
-// A method: how a probe's frames are seen before recognition.
-struct Method {
-  std::string name;                         // as reported ("restored:restorer_default")
-  std::unique_ptr<jr2::Restorer> restorer;  // restored:MODEL
-  bool classical = false;
-  bool align_first = false;  // a `vkjr2 cotrain --order align-first` model: restores aligned crops
-};
-
-// Checks a method's text before any work: its name, and its model file.
-// Returns the model file of a restored method (empty for the others).
-fs::path check_method(const std::string& text) {
-  if (text == "degraded" || text == "classical") return {};
-  if (text == "restored") {
-    check_input_file(jr2::default_restorer_path(), "--method restored (the shipped restorer)");
-    return jr2::default_restorer_path();
-  }
-  if (text.rfind("restored:", 0) == 0 && text.size() > 9) {
-    fs::path model = text.substr(9);
-    check_input_file(model, "--method " + text);
-    return model;
-  }
-  throw UsageError("--method", "unknown method '" + text + "'",
-                   "use degraded, classical, restored (the shipped restorer) or "
-                   "restored:MODEL.safetensors");
-}
-
-Method load_method(const Device& device, const std::string& text) {
-  Method m;
-  m.name = text;
-  m.classical = text == "classical";
-  const fs::path model = check_method(text);
-  if (!model.empty()) {
-    m.restorer = jr2::Restorer::load(device, model);
-    m.name = "restored:" + model.stem().string();
-    const auto meta = nets::read_safetensors(model).metadata;
-    const auto order = meta.find("cotrain.order");
-    m.align_first = order != meta.end() && order->second == "align-first";
-  }
-  return m;
-}
-
 std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream ss(text);
   std::string item;
   while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
+}
+
+// --method's list: comma-separated, where gated:MODEL,GATE keeps its comma.
+std::vector<std::string> split_methods(const std::string& text) {
+  std::vector<std::string> out;
+  for (const std::string& item : split_list(text)) {
+    if (!out.empty() && out.back().rfind("gated:", 0) == 0 &&
+        out.back().find(',') == std::string::npos) {
+      out.back() += "," + item;
+    } else {
+      out.push_back(item);
+    }
+  }
   return out;
 }
 
@@ -149,13 +120,6 @@ jr2::ProtocolOptions protocol_from(const EvalArgs& a) {
     throw UsageError("eval", e.problem(), e.fix());
   }
   return o;
-}
-
-// Every sampled frame of a probe video, decoded once.
-std::vector<Image> read_frames(const fs::path& path) {
-  std::vector<Image> frames;
-  read_video(path, 1, 0, [&](std::size_t, const Image& img) { frames.push_back(img); });
-  return frames;
 }
 
 std::string row_label(const jr2::RowMetrics& r, bool with_method, bool with_align) {
@@ -213,7 +177,7 @@ void run_eval(const EvalArgs& a) {
   check_input_file(manifest_path, "MANIFEST");
   const fs::path out(a.out);
   check_output_folder(out, "--out");
-  const std::vector<std::string> method_texts = split_list(a.methods);
+  const std::vector<std::string> method_texts = split_methods(a.methods);
   for (const std::string& text : method_texts) (void)check_method(text);
   if (a.split != "val" && a.split != "test") {
     throw UsageError("--split", "'" + a.split + "'", "use test (the reported split) or val");
@@ -295,93 +259,28 @@ void run_eval(const EvalArgs& a) {
   }
 
   std::vector<jr2::ProbeRecord> records;
+  ProbeContext ctx{device, stream, analyzer, pipeline, a.classical};
+  std::optional<GateContext> gate_ctx;
+  for (const Method& md : method_list) {
+    if (md.gate && !gate_ctx) {
+      gate_ctx = gate_context(protocol, md.gate->align());
+      ctx.gate = &*gate_ctx;
+    }
+  }
   for (std::size_t pi = 0; pi < probes.size(); ++pi) {
     const jr2::ProbeItem& p = *probes[pi];
-    const std::vector<Image> frames = read_frames(dir / p.file);
-    const Tensor clean = image_to_device(device, read_image(dir / p.clean_file));
-    const std::uint64_t sampler_seed = a.seed * 0x9e3779b97f4a7c15ULL + pi;
-    std::vector<Tensor> uploaded(frames.size());
-    const auto raw = [&](std::size_t f) {
-      if (!uploaded[f].defined()) uploaded[f] = image_to_device(device, frames[f], 3, 255.f);
-      return uploaded[f];
-    };
+    ProbeVideo video = read_probe_video(device, dir / p.file, dir / p.clean_file,
+                                        a.seed * 0x9e3779b97f4a7c15ULL + pi);
     for (const Method& method_def : method_list) {
       const std::string& method = method_def.name;
-      // degraded: the frames as the camera gave them; classical and
-      // restored: each sampled frame made from the T around it. The frames
-      // are made once: the pipeline asks for them, the image quality reads
-      // them again.
-      std::vector<Tensor> sampled;
-      const auto frame = [&](int f) {
-        if ((!method_def.restorer && !method_def.classical) || method_def.align_first) {
-          sampled.push_back(image_to_device(device, frames[std::size_t(f)]));
-          return sampled.back();
-        }
-        const int t = method_def.restorer ? method_def.restorer->config().frames : kClassicalFrames;
-        std::vector<Tensor> window;
-        for (std::size_t i : jr2::restore_window(frames.size(), std::size_t(f), t)) {
-          window.push_back(raw(i));
-        }
-        Tensor unit;  // 0..1
-        if (method_def.restorer) {
-          nets::Tape tape(stream, false);
-          unit = method_def.restorer->forward(tape, nets::Var(jr2::stack_frames(stream, window)))
-                     .value();
-        } else {
-          unit = jr2::classical_restore(stream, window, a.classical);
-        }
-        // The pipeline and the quality take 0..255 pixels, clamped as a saved frame is.
-        sampled.push_back(jr2::to_pixels(stream, unit));
-        return sampled.back();
-      };
-      // Align-first: the tracked faces' crops are the window's frames aligned
-      // by the frame's similarity and restored; their quality is against the
-      // clean clip aligned the same way.
-      std::vector<jr2::ClipQuality> crop_quality;
-      const auto aligned_crop = [&](Stream& s, int f, const jr2::Similarity& sim) {
-        const jr2::Restorer& net = *method_def.restorer;
-        std::vector<Tensor> window;
-        for (std::size_t i :
-             jr2::restore_window(frames.size(), std::size_t(f), net.config().frames)) {
-          window.push_back(raw(i));
-        }
-        const int c = int(nets::kRecognitionInputSize);
-        nets::Tape tape(s, false);
-        const nets::Var in = jr2::align_crop(tape, nets::Var(jr2::stack_frames(s, window)), sim, c);
-        Tensor crop = jr2::to_pixels(s, net.forward(tape, in).value());
-        const Tensor clean_crop = jr2::align_crop(tape, nets::Var(clean), sim, c).value();
-        crop_quality.push_back(jr2::clip_quality(s, std::span(&crop, 1), clean_crop));
-        return crop;
-      };
-      jr2::ProbeOutcome po;
-      if (method_def.align_first) {
-        jr2::ProtocolOptions with_crops = protocol;
-        with_crops.aligned_crop = aligned_crop;
-        po = jr2::ProbePipeline(analyzer, with_crops)
-                 .run(stream, int(frames.size()), frame, sampler_seed);
-      } else {
-        po = pipeline.run(stream, int(frames.size()), frame, sampler_seed);
+      MethodRun run;
+      try {
+        run = run_method(ctx, method_def, video);
+      } catch (const InvalidArgument& e) {
+        throw Error("eval", p.file + ": " + e.problem(), e.fix());
       }
-      // Image quality of the same sampled frames against the clean clip.
-      if (!(sampled.front().shape() == clean.shape())) {
-        throw Error("eval",
-                    (dir / p.clean_file).string() + " is " + clean.shape().str() + ", its probe " +
-                        p.file + " has frames of " + sampled.front().shape().str(),
-                    "make the benchmark again (vkjr2 dataset make)");
-      }
-      jr2::ClipQuality quality;
-      if (!method_def.align_first) {
-        quality = jr2::clip_quality(stream, sampled, clean);
-      } else {
-        quality = {std::nan(""), std::nan("")};  // no face tracked: no crop restored
-        if (!crop_quality.empty()) {
-          quality = {0, 0};
-          for (const auto& q : crop_quality) {
-            quality.psnr_db += q.psnr_db / double(crop_quality.size());
-            quality.ssim += q.ssim / double(crop_quality.size());
-          }
-        }
-      }
+      const jr2::ProbeOutcome& po = run.outcome;
+      const jr2::ClipQuality& quality = run.quality;
       for (std::size_t al = 0; al < protocol.aligns.size(); ++al) {
         jr2::ProbeRecord r;
         r.method = method;
@@ -402,6 +301,8 @@ void run_eval(const EvalArgs& a) {
         }
         r.psnr_db = quality.psnr_db;
         r.ssim = quality.ssim;
+        r.seconds = run.seconds;
+        if (run.gate) r.restored = run.gate->restore ? 1 : 0;
         r.frames = int(po.frames.size());
         for (const auto& f : po.frames) {
           r.single_scale += f.single_scale ? 1 : 0;
@@ -516,8 +417,10 @@ void add_eval(CLI::App& app) {
   cmd->add_option("--out", a->out, "Output folder")->required();
   cmd->add_option("--method", a->methods,
                   "Comma-separated methods: degraded (the probes as they are), classical "
-                  "(temporal mean + unsharp mask), restored (the shipped restorer) or "
-                  "restored:MODEL.safetensors")
+                  "(temporal mean + unsharp mask), restored (the shipped restorer), "
+                  "restored:MODEL.safetensors, gated:MODEL.safetensors,GATE.safetensors (the "
+                  "gate of vkjr2 gate train decides per probe whether MODEL restores it) or "
+                  "gated (the shipped restorer and gate)")
       ->default_val("degraded");
   cmd->add_option("--classical-sigma", a->classical.sigma_px,
                   "The classical method's unsharp-mask Gaussian σ in pixels")

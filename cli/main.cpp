@@ -43,6 +43,7 @@ int run(int argc, char** argv) {
   vkjr2::cli::add_restore_train(app);
   vkjr2::cli::add_cotrain(app);
   vkjr2::cli::add_estimate(app);
+  vkjr2::cli::add_gate(app);
   vkjr2::cli::add_restore_study(app);
   vkjr2::cli::add_faces(app);
   vkjr2::cli::add_simulate(app);

@@ -1,6 +1,7 @@
 #include "media.hpp"
 
 #include <vkjr2/runtime/error.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/runtime/npy.hpp>
 
 #include <fcntl.h>
@@ -552,6 +553,14 @@ std::vector<std::filesystem::path> list_files(
 
 std::vector<std::filesystem::path> list_images(const std::filesystem::path& dir) {
   return list_files(dir, [](const std::filesystem::path& p) { return is_image_path(p); });
+}
+
+ProbeVideo read_probe_video(const Device& device, const std::filesystem::path& video,
+                            const std::filesystem::path& clean, std::uint64_t sampler_seed) {
+  std::vector<HostTensor> frames;
+  read_video(video, 1, 0, [&](std::size_t, const Image& img) { frames.push_back(img); });
+  return {device, std::move(frames), image_to_device(device, read_image(clean)), clean,
+          sampler_seed};
 }
 
 }  // namespace vkjr2::cli

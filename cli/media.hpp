@@ -9,6 +9,7 @@
 // off the terminal unless --verbose.
 #pragma once
 
+#include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/host_tensor.hpp>
 
 #include <cstdint>
@@ -18,6 +19,8 @@
 #include <memory>
 #include <string>
 #include <vector>
+
+#include "probe_run.hpp"
 
 namespace vkjr2::cli {
 
@@ -113,5 +116,10 @@ class QuietDecoders {
  private:
   int saved_ = -1;
 };
+
+// A benchmark's probe video and its clean clip (.png), decoded, as the
+// evaluation runs it (probe_run.hpp).
+ProbeVideo read_probe_video(const Device& device, const std::filesystem::path& video,
+                            const std::filesystem::path& clean, std::uint64_t sampler_seed);
 
 }  // namespace vkjr2::cli

@@ -170,6 +170,11 @@ Evaluation evaluate(std::vector<std::string> gallery, std::string split,
     };
     row.psnr_db = bootstrap_items(units, mean_of(&ProbeRecord::psnr_db), o.bootstrap);
     row.ssim = bootstrap_items(units, mean_of(&ProbeRecord::ssim), o.bootstrap);
+    row.seconds = bootstrap_items(units, mean_of(&ProbeRecord::seconds), o.bootstrap);
+    for (std::size_t i : members) {
+      row.gated += e.records[i].restored >= 0 ? 1 : 0;
+      row.restored += e.records[i].restored > 0 ? 1 : 0;
+    }
     e.rows.push_back(std::move(row));
   }
   return e;
@@ -216,6 +221,12 @@ std::string results_json(const Evaluation& e, const std::string& setup_json) {
     row["fnir_at_fpir"] = fnir;
     row["psnr_db"] = interval_json(r.psnr_db);
     row["ssim"] = interval_json(r.ssim);
+    row["seconds_per_probe"] = interval_json(r.seconds);
+    if (r.gated > 0) {
+      row["gate"] = {{"probes", r.gated},
+                     {"restored", r.restored},
+                     {"skipped_share", double(r.gated - r.restored) / double(r.gated)}};
+    }
     ojson roc = ojson::array();
     for (const RocPoint& p : r.roc) roc.push_back({number(p.threshold), p.far, p.tar});
     row["roc"] = {{"columns", {"threshold", "far", "tar"}}, {"points", roc}};
@@ -237,9 +248,9 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
   for (double f : o.fars) md << " TAR@FAR " << far_label(f) << " |";
   for (std::size_t k : o.ranks) md << " Rank-" << k << " |";
   for (double p : o.fpirs) md << " FNIR@FPIR " << far_label(p) << " |";
-  md << " PSNR (dB) | SSIM |";
+  md << " PSNR (dB) | SSIM | s / probe | skipped |";
   md << "\n|---|---|---|---|---|";
-  for (std::size_t i = 0; i < o.fars.size() + o.ranks.size() + o.fpirs.size() + 2; ++i)
+  for (std::size_t i = 0; i < o.fars.size() + o.ranks.size() + o.fpirs.size() + 4; ++i)
     md << "---|";
   md << "\n";
   std::vector<std::string> notes;
@@ -260,7 +271,11 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
     for (const RateWithInterval& f : r.fnir) {
       md << " " << (f.point.reported ? with_ci(f.interval) : "n/a") << " |";
     }
-    md << " " << plain_ci(r.psnr_db, "%.2f") << " | " << plain_ci(r.ssim, "%.3f") << " |\n";
+    md << " " << plain_ci(r.psnr_db, "%.2f") << " | " << plain_ci(r.ssim, "%.3f") << " | "
+       << plain_ci(r.seconds, "%.2f") << " | "
+       << (r.gated == 0 ? std::string("—")
+                        : percent(double(r.gated - r.restored) / double(r.gated)))
+       << " |\n";
   }
   md << "\nAll figures but PSNR and SSIM are percentages; every one has a bootstrap 95 % interval ("
      << o.bootstrap.resamples << " resamples of identities, then of each identity's probes; seed "
@@ -278,6 +293,8 @@ std::string report_markdown(const Evaluation& e, const std::string& preamble) {
         "detection where the face was in the other frames). Only tracked frames are described.\n"
         "PSNR and SSIM: the sampled frames against the probe's clean clip (8-bit range), "
         "the mean over a probe's frames, then over the probes.\n"
+        "s / probe: the method's wall time per probe video (decoding excluded). Skipped: the "
+        "share of probes a gated method's gate left unrestored (— for the others).\n"
         "FNIR is at rank "
      << o.fnir_max_rank
      << " (the mate must be the top candidate and score above the threshold). A probe without any "

@@ -26,6 +26,9 @@ struct ProbeRecord {
   double psnr_db =
       std::numeric_limits<double>::quiet_NaN();  // of the sampled frames vs the clean clip
   double ssim = std::numeric_limits<double>::quiet_NaN();
+  // Wall time of the method on this probe (decoding excluded), seconds.
+  double seconds = std::numeric_limits<double>::quiet_NaN();
+  int restored = -1;  // a gated method: 1 restored, 0 skipped; -1 not gated
 };
 
 struct EvaluationOptions {
@@ -46,10 +49,12 @@ struct RowMetrics {
   std::string method, align, strength;
   std::size_t probes = 0, mated = 0, nonmated = 0, acquired = 0, identities = 0;
   std::size_t frames = 0, single_scale = 0, multi_scale = 0, tracked = 0;
-  std::vector<RateWithInterval> tar;   // per EvaluationOptions::fars
-  std::vector<Interval> rank;          // per EvaluationOptions::ranks
-  std::vector<RateWithInterval> fnir;  // per EvaluationOptions::fpirs
-  Interval psnr_db, ssim;              // mean over the probes that have them
+  std::vector<RateWithInterval> tar;    // per EvaluationOptions::fars
+  std::vector<Interval> rank;           // per EvaluationOptions::ranks
+  std::vector<RateWithInterval> fnir;   // per EvaluationOptions::fpirs
+  Interval psnr_db, ssim;               // mean over the probes that have them
+  Interval seconds;                     // mean time per probe
+  std::size_t gated = 0, restored = 0;  // probes a gate decided on; of them, restored
   std::vector<RocPoint> roc;
   std::vector<double> cmc;             // ranks 1..min(20, gallery)
   std::vector<OpenSetPoint> open_set;  // the FNIR–FPIR curve

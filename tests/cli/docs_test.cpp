@@ -32,9 +32,11 @@ std::string help(const std::string& command) {
 TEST(CliDocs, EveryCommandsHelpIsInDocsCliMd) {
   const std::string docs = read_docs();
   ASSERT_FALSE(docs.empty()) << "docs/cli.md is missing";
-  for (const char* c : {"", "dataset", "dataset make", "dataset merge", "eval", "demo", "devices",
-                        "detect", "embed", "verify", "identify", "simulate", "wave", "sim-train",
-                        "sim-validate", "bench", "bench sim", "bench kernels"}) {
+  for (const char* c :
+       {"",          "dataset",      "dataset make", "dataset merge", "eval",
+        "gate",      "gate train",   "demo",         "devices",       "detect",
+        "embed",     "verify",       "identify",     "simulate",      "wave",
+        "sim-train", "sim-validate", "bench",        "bench sim",     "bench kernels"}) {
     const std::string h = help(c);
     EXPECT_NE(h.find("Usage"), std::string::npos) << c;
     EXPECT_NE(docs.find("```\n" + h + "```"), std::string::npos)

@@ -4,6 +4,9 @@
 
 #include <nlohmann/json.hpp>
 
+#include <filesystem>
+#include <fstream>
+#include <iterator>
 #include <string>
 
 #include "support/temp_dir.hpp"
@@ -24,6 +27,12 @@ inline nlohmann::json parse_json(const std::string& out) {
   const auto start = text.find_first_of("[{");
   if (start == std::string::npos) return nlohmann::json();
   return nlohmann::json::parse(text.substr(start), nullptr, false);
+}
+
+// A file's bytes (empty when it cannot be read).
+inline std::string read_bytes(const std::filesystem::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  return {std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>()};
 }
 
 }  // namespace vkjr2::test
