@@ -27,6 +27,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,7 @@
 #include "cli/clips.hpp"
 #include "cli/cv_image.hpp"
 #include "cli/log.hpp"
+#include "cli/probe_run.hpp"
 #include "cli/run.hpp"
 #include "harness.hpp"
 #include "nets_tfjs_peer.hpp"
@@ -46,8 +48,8 @@ using nlohmann::json;
 
 struct PipelineArgs {
   int probes = 6, frames = 30, runs = 3, clip = 160, face_px = 80;
-  double d_over_r0 = 3.0;
-  bool tfjs = true, json_out = false;
+  std::vector<double> d_over_r0 = {1.5, 3.0, 6.0};  // probe i: d_over_r0[i mod size]
+  bool tfjs = true, restore = true, json_out = false;
   std::string device, json_path,
       faceapi_script = std::string(VKJR2_SOURCE_DIR) + "/bench/faceapi_bench.mjs";
 };
@@ -55,7 +57,9 @@ struct PipelineArgs {
 // A probe video: its frames as a decoded 8-bit video gives them (H×W×3, 0..255).
 struct Probe {
   std::string name;
+  double d_over_r0 = 0;
   std::vector<HostTensor> frames;
+  HostTensor clean;  // the clip before turbulence
   std::vector<int> sampled;
 };
 
@@ -96,10 +100,12 @@ std::vector<Probe> make_probes(const Device& device, const jr2::FaceAnalyzer& an
     const auto& [photo, box] = faces[std::size_t(i) % faces.size()];
     const HostTensor clip = face_clip(photo, box, c, a.face_px);
     x.upload(image_to_planes(clip, 3, 255.f));
-    sim::Simulator simulator(device, jr2::probe_sim_params(a.d_over_r0, c), blur, so);
-    simulator.reset(std::uint64_t(i) + 1);
     Probe probe;
     probe.name = "probe_" + std::to_string(i);
+    probe.d_over_r0 = a.d_over_r0[std::size_t(i) % a.d_over_r0.size()];
+    probe.clean = clip;
+    sim::Simulator simulator(device, jr2::probe_sim_params(probe.d_over_r0, c), blur, so);
+    simulator.reset(std::uint64_t(i) + 1);
     for (int t = 0; t < a.frames; ++t) {
       simulator.frame(stream, x, y);
       stream.run();
@@ -153,6 +159,20 @@ Timed run_ours(const jr2::ProbePipeline& pipeline, Stream& stream, const Device&
   return t;
 }
 
+// One probe through a method of vkjr2 eval (restored, gated), decoded
+// frames given; a fresh ProbeVideo each time, so nothing is cached between runs.
+struct MethodTimed {
+  double seconds = 0;
+  bool restored = false;
+  jr2::StageSeconds stages;
+};
+MethodTimed run_method_timed(ProbeContext& ctx, const Method& method, const Probe& p,
+                             std::uint64_t seed) {
+  ProbeVideo video(ctx.device, p.frames, nets::image_to_device(ctx.device, p.clean), p.name, seed);
+  const MethodRun run = run_method(ctx, method, video);
+  return {run.seconds, !run.gate || run.gate->restore, run.outcome.seconds};
+}
+
 double median(std::vector<double> v) {
   std::sort(v.begin(), v.end());
   return v.empty() ? 0 : v[v.size() / 2];
@@ -170,8 +190,14 @@ void run_bench_pipeline(const PipelineArgs& a) {
   const jr2::ProtocolOptions protocol;  // vkjr2 eval's default
   const jr2::ProbePipeline ours_matched(analyzer, matched), ours_protocol(analyzer, protocol);
 
-  std::fprintf(stderr, "bench pipeline: making %d probe videos of %d frames (D/r0 %.1f)...\n",
-               a.probes, a.frames, a.d_over_r0);
+  std::string strengths;
+  for (double d : a.d_over_r0) {
+    char b[32];
+    std::snprintf(b, sizeof b, "%g", d);
+    strengths += (strengths.empty() ? "" : ", ") + std::string(b);
+  }
+  std::fprintf(stderr, "bench pipeline: making %d probe videos of %d frames (D/r0 %s)...\n",
+               a.probes, a.frames, strengths.c_str());
   const std::vector<Probe> probes = make_probes(device, analyzer, a, matched.sampler);
   const fs::path frames_dir =
       fs::temp_directory_path() / ("vkjr2_bench_pipeline_" + std::to_string(::getpid()));
@@ -181,35 +207,64 @@ void run_bench_pipeline(const PipelineArgs& a) {
   if (!tfjs.available())
     std::fprintf(stderr, "bench pipeline: no TF.js peer: %s\n", tfjs.reason().c_str());
 
+  // The restore paths: the shipped restorer on every probe, and the shipped
+  // gate deciding per probe (vkjr2 eval's restored and gated methods).
   Stream stream(device);
-  std::vector<double> t_matched, t_protocol, t_tfjs;
-  jr2::StageSeconds s_matched, s_protocol;
+  std::optional<GateContext> gate_ctx;
+  Method restore_all, gated;
+  if (a.restore) {
+    restore_all = load_method(device, "restored");
+    gated = load_method(device, "gated");
+    gate_ctx = gate_context(protocol, gated.gate->align());
+  }
+  ProbeContext ctx{device, stream, analyzer, ours_protocol, {}, gate_ctx ? &*gate_ctx : nullptr};
+
+  std::vector<double> t_matched, t_protocol, t_tfjs, t_restore, t_gated;
+  jr2::StageSeconds s_matched, s_protocol, s_restore;
+  std::size_t gate_restored = 0;
+  const auto add = [](jr2::StageSeconds& dst, const jr2::StageSeconds& src) {
+    dst.frames += src.frames;
+    dst.detect += src.detect;
+    dst.landmarks += src.landmarks;
+    dst.align_embed += src.align_embed;
+    dst.fusion += src.fusion;
+  };
   for (int r = 0; r <= a.runs; ++r) {  // run 0 warms every peer up
-    double m = 0, pr = 0, tf = 0;
-    jr2::StageSeconds sm, sp;
+    double m = 0, pr = 0, tf = 0, ra = 0, ga = 0;
+    jr2::StageSeconds sm, sp, sr;
+    std::size_t restored = 0;
     for (std::size_t i = 0; i < probes.size(); ++i) {
-      const Timed tm = run_ours(ours_matched, stream, device, probes[i], std::uint64_t(i) + 1);
+      const std::uint64_t seed = std::uint64_t(i) + 1;
+      const Timed tm = run_ours(ours_matched, stream, device, probes[i], seed);
       if (tfjs.available()) tf += tfjs.run(probes[i].name);
-      const Timed tp = run_ours(ours_protocol, stream, device, probes[i], std::uint64_t(i) + 1);
+      const Timed tp = run_ours(ours_protocol, stream, device, probes[i], seed);
       m += tm.seconds;
       pr += tp.seconds;
-      for (auto [dst, src] : {std::pair{&sm, &tm.stages}, std::pair{&sp, &tp.stages}}) {
-        dst->frames += src->frames;
-        dst->detect += src->detect;
-        dst->landmarks += src->landmarks;
-        dst->align_embed += src->align_embed;
-        dst->fusion += src->fusion;
+      add(sm, tm.stages);
+      add(sp, tp.stages);
+      if (a.restore) {
+        const MethodTimed all = run_method_timed(ctx, restore_all, probes[i], seed);
+        const MethodTimed g = run_method_timed(ctx, gated, probes[i], seed);
+        ra += all.seconds;
+        ga += g.seconds;
+        add(sr, all.stages);
+        restored += g.restored ? 1 : 0;
       }
     }
     std::fprintf(stderr,
-                 "bench pipeline: run %d/%d: %.2f s matched, %.2f s protocol, %.2f s face-api\n", r,
-                 a.runs, m, pr, tf);
+                 "bench pipeline: run %d/%d: %.2f s matched, %.2f s protocol, %.2f s face-api, "
+                 "%.2f s restore-all, %.2f s gated\n",
+                 r, a.runs, m, pr, tf, ra, ga);
     if (r == 0) continue;
     t_matched.push_back(m);
     t_protocol.push_back(pr);
     t_tfjs.push_back(tf);
+    t_restore.push_back(ra);
+    t_gated.push_back(ga);
+    gate_restored = restored;  // the same decisions every run (same frames, same gate)
     if (r == 1 || m < median(t_matched)) s_matched = sm;  // stages of a typical run
     if (r == 1 || pr < median(t_protocol)) s_protocol = sp;
+    if (r == 1 || ra < median(t_restore)) s_restore = sr;
   }
   std::error_code ec;
   fs::remove_all(frames_dir, ec);
@@ -223,37 +278,62 @@ void run_bench_pipeline(const PipelineArgs& a) {
       {"pipeline protocol (416,160,320; 2 aligns)", n / median(t_protocol), "probes/s", peer,
        peer_fps},
   };
+  if (a.restore) {
+    results.push_back({"restore-all (shipped restorer + protocol)", n / median(t_restore),
+                       "probes/s", "pipeline protocol, no restoration", n / median(t_protocol)});
+    results.push_back({"gated (shipped gate, restores " + std::to_string(gate_restored) + "/" +
+                           std::to_string(probes.size()) + ")",
+                       n / median(t_gated), "probes/s", "restore-all", n / median(t_restore)});
+  }
   bench::print_table(
       "vkjr2 bench pipeline: probe videos through sampler → detect → landmarks → "
       "align → embed → template",
       device, results);
-  const auto stage_row = [&](const char* name, const jr2::StageSeconds& s) {
-    const double total = s.total();
+  const auto stage_row = [&](const char* name, const jr2::StageSeconds& st) {
+    const double total = st.total();
     const auto ms = [&](double v) { return 1000 * v / n; };
     std::printf("%-42s %8.1f %8.1f %8.1f %8.1f %8.2f %8.1f ms/probe  (detect %.0f %%)\n", name,
-                ms(s.frames), ms(s.detect), ms(s.landmarks), ms(s.align_embed), ms(s.fusion),
-                ms(total), total > 0 ? 100 * s.detect / total : 0.0);
+                ms(st.frames), ms(st.detect), ms(st.landmarks), ms(st.align_embed), ms(st.fusion),
+                ms(total), total > 0 ? 100 * st.detect / total : 0.0);
   };
   std::printf("\nper stage (ms per probe of %zu sampled frames):\n%-42s %8s %8s %8s %8s %8s %8s\n",
               probes.front().sampled.size(), "", "frames", "detect", "landmk", "align+emb",
               "template", "total");
   stage_row("1 size (160), face_api crop", s_matched);
   stage_row("protocol (416,160,320; 2 aligns)", s_protocol);
+  if (a.restore) {
+    stage_row("restore-all (the restorer runs within detect)", s_restore);
+    const double saved = 1 - median(t_gated) / median(t_restore);
+    std::printf(
+        "\ngate: restored %zu of %zu probes; %.0f %% of restore-all's time saved (the gate's "
+        "features, a DIS tilt estimate and the sharpness, included)\n",
+        gate_restored, probes.size(), 100 * saved);
+  }
   std::printf(
-      "\n%d probes of %d frames (%dx%d clips, D/r0 %.1f), sampler %s; median of %d runs "
+      "\n%d probes of %d frames (%dx%d clips, D/r0 %s in turn), sampler %s; median of %d runs "
       "after 1 warm-up, the peers' runs interleaved.\nTF.js peer: %s\n",
-      a.probes, a.frames, a.clip, a.clip, a.d_over_r0, jr2::to_string(matched.sampler).c_str(),
-      a.runs, tfjs.available() ? tfjs.peer().c_str() : tfjs.reason().c_str());
+      a.probes, a.frames, a.clip, a.clip, strengths.c_str(),
+      jr2::to_string(matched.sampler).c_str(), a.runs,
+      tfjs.available() ? tfjs.peer().c_str() : tfjs.reason().c_str());
 
   json j = bench::to_json(device, results);
-  const auto stages_json = [](const jr2::StageSeconds& s, double count) {
-    return json{{"frames_s", s.frames / count},       {"detect_s", s.detect / count},
-                {"landmarks_s", s.landmarks / count}, {"align_embed_s", s.align_embed / count},
-                {"template_s", s.fusion / count},     {"total_s", s.total() / count}};
+  const auto stages_json = [](const jr2::StageSeconds& st, double count) {
+    return json{{"frames_s", st.frames / count},       {"detect_s", st.detect / count},
+                {"landmarks_s", st.landmarks / count}, {"align_embed_s", st.align_embed / count},
+                {"template_s", st.fusion / count},     {"total_s", st.total() / count}};
   };
   j["stages_per_probe"] = {{"matched", stages_json(s_matched, n)},
                            {"protocol", stages_json(s_protocol, n)}};
+  if (a.restore) {
+    j["stages_per_probe"]["restore_all"] = stages_json(s_restore, n);
+    j["gate"] = {{"restored", gate_restored},
+                 {"probes", probes.size()},
+                 {"seconds_per_probe", median(t_gated) / n},
+                 {"restore_all_seconds_per_probe", median(t_restore) / n},
+                 {"time_saved_share", 1 - median(t_gated) / median(t_restore)}};
+  }
   j["probes"] = a.probes;
+  j["d_over_r0"] = a.d_over_r0;
   j["frames_per_probe"] = a.frames;
   j["sampled_frames"] = probes.front().sampled.size();
   j["runs"] = a.runs;
@@ -283,6 +363,9 @@ int run(int argc, char** argv) {
       "WASM\n"
       "(node bench/faceapi_bench.mjs) running detect + landmarks + descriptors on the same sampled "
       "frames.\n"
+      "Then vkjr2 eval's restored and gated methods with the shipped restorer and gate: every "
+      "probe\n"
+      "restored, and the gate deciding per probe (the work it saves, against restore-all).\n"
       "Prints probes/s, the ratio, and the time per stage.\n"
       "Example:\n  vkjr2 bench pipeline --json-file bench_pipeline.json\n"
       "The other benchmarks: vkjr2 bench --help (bench/RESULTS.md has the latest figures).");
@@ -295,9 +378,12 @@ int run(int argc, char** argv) {
   app.add_option("--runs", a.runs, "Timed runs (median), after one warm-up")
       ->default_val(3)
       ->check(integer_range(1, 100));
-  app.add_option("--d-over-r0", a.d_over_r0, "Turbulence strength D/r0 of the probes")
-      ->default_val(3.0)
+  app.add_option("--d-over-r0", a.d_over_r0,
+                 "Turbulence strengths D/r0, comma-separated: probe i gets the (i mod n)-th")
+      ->delimiter(',')
+      ->default_str("1.5,3,6")
       ->check(finite_range(0.1, 20.0));
+  app.add_flag("!--no-restore", a.restore, "Skip the restore-all and gated paths");
   app.add_flag("!--no-tfjs", a.tfjs, "Skip the TF.js peer");
   app.add_option("--faceapi-script", a.faceapi_script, "The TF.js peer's script");
   app.add_option("--device", a.device, "Vulkan device index or name substring (else VKJR2_DEVICE)");

@@ -55,8 +55,9 @@ struct EvalArgs {
   bool quiet = false, force = false, json_out = false;
 };
 
-constexpr std::array<const char*, 6> kOutputs = {"results.json", "report.md", "scores.csv",
-                                                 "roc.png",      "cmc.png",   "fnir_fpir.png"};
+constexpr std::array<const char*, 7> kOutputs = {"results.json",   "report.md", "scores.csv",
+                                                 "roc.png",        "cmc.png",   "fnir_fpir.png",
+                                                 "rank_change.png"};
 std::vector<std::string> split_list(const std::string& text) {
   std::vector<std::string> out;
   std::stringstream ss(text);
@@ -169,6 +170,56 @@ void write_plots(const fs::path& out, const jr2::Evaluation& e, bool force) {
     for (const auto& q : r.open_set) p.emplace_back(q.fpir, q.fnir);
     return p;
   });
+}
+
+// The mate's rank bin of a mated record: 0 rank 1, 1 ranks 2–5, 2 rank 6
+// and beyond, 3 no face found.
+int rank_bin(const jr2::ProbeRecord& r) {
+  if (!r.acquired) return 3;
+  const double own = r.scores[std::size_t(r.mate)];
+  int rank = 1;
+  for (std::size_t g = 0; g < r.scores.size(); ++g) {
+    if (int(g) != r.mate && r.scores[g] > own) ++rank;
+  }
+  return rank == 1 ? 0 : rank <= 5 ? 1 : 2;
+}
+
+// rank_change.png: for every method beside degraded, how the mated probes'
+// rank moved from degraded (rows) to the method (columns), in one alignment
+// (similarity when evaluated). Written only when degraded is evaluated with
+// another method.
+void write_rank_change(const fs::path& out, const jr2::Evaluation& e,
+                       const std::vector<std::string>& methods, bool force) {
+  if (std::find(methods.begin(), methods.end(), "degraded") == methods.end() ||
+      methods.size() < 2) {
+    return;
+  }
+  std::string align;
+  for (const auto& r : e.records) {
+    if (align.empty() || r.align == "similarity") align = r.align;
+  }
+  std::map<std::string, int> before;  // probe file → bin, degraded
+  for (const auto& r : e.records) {
+    if (r.method == "degraded" && r.align == align && r.mated) before[r.file] = rank_bin(r);
+  }
+  MatrixSpec spec{"Rank of the mate: degraded (rows) -> method (columns); split " + e.split + ", " +
+                      align + " alignment, mated probes",
+                  "degraded",
+                  "after",
+                  {"1", "2-5", "6+", "no face"},
+                  {"1", "2-5", "6+", "no face"},
+                  {}};
+  for (const std::string& m : methods) {
+    if (m == "degraded") continue;
+    MatrixPanel panel{m, std::vector<std::vector<int>>(4, std::vector<int>(4, 0))};
+    for (const auto& r : e.records) {
+      if (r.method != m || r.align != align || !r.mated) continue;
+      const auto it = before.find(r.file);
+      if (it != before.end()) ++panel.counts[std::size_t(it->second)][std::size_t(rank_bin(r))];
+    }
+    spec.panels.push_back(std::move(panel));
+  }
+  write_matrix_plot(out / "rank_change.png", spec, force);
 }
 
 void run_eval(const EvalArgs& a) {
@@ -374,6 +425,7 @@ void run_eval(const EvalArgs& a) {
   write_text("scores.csv", jr2::scores_csv(e));
   write_text("results.json", jr2::results_json(e, setup.dump()));
   write_plots(out, e, a.force);
+  write_rank_change(out, e, methods, a.force);
   write_text("report.md", report);
   if (a.json_out) {
     std::ifstream in(out / "results.json");
@@ -381,8 +433,10 @@ void run_eval(const EvalArgs& a) {
   } else {
     std::printf(
         "%s\nwrote %s/{results.json, report.md, scores.csv, roc.png, cmc.png, "
-        "fnir_fpir.png} in %.0f s\n",
-        report.c_str(), out.string().c_str(), seconds);
+        "fnir_fpir.png%s} in %.0f s\n",
+        report.c_str(), out.string().c_str(),
+        fs::exists(out / "rank_change.png") && methods.size() > 1 ? ", rank_change.png" : "",
+        seconds);
   }
 }
 
@@ -407,7 +461,9 @@ void add_eval(CLI::App& app) {
       "95 % interval (identities, then probes), and n/a where the benchmark is too small to "
       "measure it.\n"
       "Writes results.json, report.md, scores.csv (every comparison) and roc.png, cmc.png, "
-      "fnir_fpir.png.\n"
+      "fnir_fpir.png;\n"
+      "with degraded and another method, rank_change.png (how each method moved the mates' "
+      "ranks).\n"
       "Definitions: docs/eval.md.\n"
       "Examples:\n"
       "  vkjr2 dataset make --out bench/jr2 && vkjr2 eval bench/jr2/manifest.json --out out/eval\n"

@@ -1,5 +1,7 @@
 #include "plot.hpp"
 
+#include <vkjr2/runtime/error.hpp>
+
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -143,6 +145,60 @@ void write_plot(const std::filesystem::path& path, const PlotSpec& given, bool f
       cv::putText(img, spec.series[s].label, {origin.x + 44, y}, kFont, 0.45, cv::Scalar(0, 0, 0),
                   1, cv::LINE_AA);
     }
+  }
+  write_image(path, image_from_bgr(img), force);
+}
+
+void write_matrix_plot(const std::filesystem::path& path, const MatrixSpec& spec, bool force) {
+  const int nr = int(spec.rows.size()), nc = int(spec.columns.size());
+  if (nr == 0 || nc == 0 || spec.panels.empty()) {
+    throw InvalidArgument("write_matrix_plot", "no categories or no panels",
+                          "give at least one row, one column and one panel");
+  }
+  for (const MatrixPanel& p : spec.panels) {
+    bool ok = int(p.counts.size()) == nr;
+    for (const auto& row : p.counts) ok = ok && int(row.size()) == nc;
+    if (!ok) {
+      throw InvalidArgument(
+          "write_matrix_plot",
+          "panel '" + p.title + "' is not " + std::to_string(nr) + "×" + std::to_string(nc),
+          "give one count per row and column");
+    }
+  }
+  constexpr int kCell = 80, kLeftLabels = 150, kGap = 50, kTopTitle = 60, kHeader = 70;
+  const int panel_w = kLeftLabels + nc * kCell;
+  const int width = kGap + int(spec.panels.size()) * (panel_w + kGap);
+  const int height = kTopTitle + kHeader + nr * kCell + 60;
+  cv::Mat img(height, width, CV_8UC3, cv::Scalar(255, 255, 255));
+  text(img, spec.title, {width / 2, 30}, 0.7, true);
+  for (std::size_t pi = 0; pi < spec.panels.size(); ++pi) {
+    const MatrixPanel& p = spec.panels[pi];
+    const int x0 = kGap + int(pi) * (panel_w + kGap) + kLeftLabels, y0 = kTopTitle + kHeader;
+    int total = 0;
+    for (const auto& row : p.counts) {
+      for (int c : row) total += c;
+    }
+    text(img, p.title, {x0 + nc * kCell / 2, kTopTitle + 10}, 0.5, true);
+    text(img, spec.column_label, {x0 + nc * kCell / 2, kTopTitle + 32}, 0.45, true);
+    for (int c = 0; c < nc; ++c) {
+      text(img, spec.columns[std::size_t(c)], {x0 + c * kCell + kCell / 2, y0 - 10}, 0.45, true);
+    }
+    text(img, spec.row_label, {x0 - kLeftLabels + 4, y0 - 10}, 0.45);
+    for (int r = 0; r < nr; ++r) {
+      text(img, spec.rows[std::size_t(r)], {x0 - kLeftLabels + 20, y0 + r * kCell + kCell / 2 + 5},
+           0.5);
+      for (int c = 0; c < nc; ++c) {
+        const int n = p.counts[std::size_t(r)][std::size_t(c)];
+        const double share = total > 0 ? double(n) / total : 0;
+        const int shade = int(std::lround(255 - 170 * std::sqrt(share)));
+        const cv::Rect cell(x0 + c * kCell, y0 + r * kCell, kCell, kCell);
+        cv::rectangle(img, cell, cv::Scalar(255, shade, shade), cv::FILLED);
+        cv::rectangle(img, cell, cv::Scalar(150, 150, 150), 1);
+        text(img, std::to_string(n), {cell.x + kCell / 2, cell.y + kCell / 2 + 6}, 0.6, true);
+      }
+    }
+    text(img, "n = " + std::to_string(total), {x0 + nc * kCell / 2, y0 + nr * kCell + 30}, 0.45,
+         true);
   }
   write_image(path, image_from_bgr(img), force);
 }

@@ -27,4 +27,19 @@ struct PlotSpec {
 // Writes the plot (1000×700 px) atomically; refuses to replace a file unless force.
 void write_plot(const std::filesystem::path& path, const PlotSpec& spec, bool force);
 
+// Count matrices side by side (a confusion matrix per panel): each cell its
+// count, shaded by its share of the panel's total.
+struct MatrixPanel {
+  std::string title;
+  std::vector<std::vector<int>> counts;  // [row][column]
+};
+struct MatrixSpec {
+  std::string title, row_label, column_label;
+  std::vector<std::string> rows, columns;  // the categories' names
+  std::vector<MatrixPanel> panels;
+};
+// Writes the matrices atomically; refuses to replace a file unless force.
+// Throws InvalidArgument when a panel's counts do not match the categories.
+void write_matrix_plot(const std::filesystem::path& path, const MatrixSpec& spec, bool force);
+
 }  // namespace vkjr2::cli

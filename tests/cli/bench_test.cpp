@@ -45,6 +45,21 @@ TEST(CliBenchKernels, OneCaseTableAndJson) {
   EXPECT_FALSE(written.contains("device_fma_peak_gflops"));
 }
 
+// The pipeline with its restore paths on one weak probe: restore-all against
+// the plain protocol, the gate (which skips it) against restore-all.
+TEST(CliBenchPipeline, RestoreAllAndGatedPaths) {
+  const auto r = run_cli("bench pipeline --probes 1 --frames 10 --runs 1 --no-tfjs --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output.substr(r.output.find("\n{")));
+  ASSERT_EQ(j["results"].size(), 4u) << j.dump();
+  EXPECT_EQ(j["results"][2]["peer"], "pipeline protocol, no restoration");
+  EXPECT_EQ(j["results"][3]["peer"], "restore-all");
+  for (const json& row : j["results"]) EXPECT_GT(row["value"].get<double>(), 0) << row.dump();
+  EXPECT_EQ(j["gate"]["probes"], 1);
+  EXPECT_EQ(j["d_over_r0"][0], 1.5);
+  EXPECT_GT(j["stages_per_probe"]["restore_all"]["total_s"].get<double>(), 0);
+}
+
 TEST(CliBenchKernels, UnknownBenchmarkIsAUsageError) {
   const auto r = run_cli("bench kernels --only warp,no-such-kernel");
   EXPECT_EQ(r.code, 2) << r.output;
