@@ -302,7 +302,7 @@ void run_bench_pipeline(const PipelineArgs& a) {
   stage_row("1 size (160), face_api crop", s_matched);
   stage_row("protocol (416,160,320; 2 aligns)", s_protocol);
   if (a.restore) {
-    stage_row("restore-all (the restorer runs within detect)", s_restore);
+    stage_row("restore-all (restorer within detect)", s_restore);
     const double saved = 1 - median(t_gated) / median(t_restore);
     std::printf(
         "\ngate: restored %zu of %zu probes; %.0f %% of restore-all's time saved (the gate's "

@@ -267,7 +267,7 @@ ojson outcome_table(Stream& stream, const jr2::Gate& gate,
       strengths.push_back(s.strength);
     }
   }
-  strengths.push_back("all");
+  strengths.emplace_back("all");
   ojson t = ojson::object();
   for (const std::string& st : strengths) {
     std::vector<jr2::GateSample> part;
@@ -415,7 +415,7 @@ void add_gate(CLI::App& app) {
       "restored).\n"
       "--samples caches the labels (reused when made from the same benchmark, splits, restorer, "
       "alignment\n"
-      "and seed). A probe without a face found is always restored. docs/jr2.md §9.\n"
+      "and seed). A probe without a face found is always restored. docs/jr2.md §8.\n"
       "Examples:\n"
       "  vkjr2 dataset make --out bench/jr2_train --seed 2\n"
       "  vkjr2 gate train artifacts/gate.safetensors --train bench/jr2_train/manifest.json \\\n"

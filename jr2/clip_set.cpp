@@ -21,11 +21,7 @@ void require(bool ok, const std::string& what, const std::string& fix) {
   if (!ok) throw InvalidArgument("wave clips", what, fix);
 }
 
-std::string num(double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.9g", x);
-  return b;
-}
+std::string num(double x) { return detail::number_text(x, 9); }
 
 double mean_of(std::span<const double> v, std::span<const std::size_t> idx) {
   double a = 0;

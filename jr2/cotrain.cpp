@@ -41,11 +41,7 @@ void require(bool ok, const std::string& what, const std::string& fix) {
   if (!ok) throw InvalidArgument("cotrain", what, fix);
 }
 
-std::string num(double x) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%.9g", x);
-  return b;
-}
+std::string num(double x) { return detail::number_text(x, 9); }
 
 // The checkpointed state: the student and the margin head.
 class CoTrainModel : public nets::Module {

@@ -14,6 +14,8 @@
 #include <numbers>
 #include <utility>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
@@ -22,11 +24,7 @@ constexpr int kDescriptorSize = 128;
 constexpr double kInvE = 0.36787944117144233;  // 1/e: the label of an unchanged rank
 constexpr std::array<double, 5> kMargins = {0, 0.05, 0.1, 0.2, 1};
 
-std::string num(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+std::string num(double x) { return detail::number_text(x, 17); }
 
 double normal_density(double x, double mu, double sigma) {
   const double z = (x - mu) / sigma;

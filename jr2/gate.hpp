@@ -1,4 +1,4 @@
-// The restoration gate (docs/jr2.md §9; the seed paper's VIDCLS): decides per
+// The restoration gate (docs/jr2.md §8; the seed paper's VIDCLS): decides per
 // probe video whether restoring it is worth its cost.
 //
 // Two small heads read frozen features of the degraded probe (its template,
@@ -80,7 +80,7 @@ struct GateSample {
 struct GateTrainOptions {
   // Feed the 128 template values to the heads too. Off by default: with a
   // benchmark's hundred-odd labelled probes the heads fit the template's
-  // noise (docs/jr2.md §9).
+  // noise (docs/jr2.md §8).
   bool descriptor = false;
   int hidden = 16;   // hidden units of each head (one ReLU layer)
   int steps = 1500;  // full-batch AdamW steps

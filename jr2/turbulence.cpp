@@ -14,17 +14,15 @@
 #include <string>
 #include <utility>
 
+#include "internal/text_and_draws.hpp"
+
 namespace vkjr2::jr2 {
 namespace {
 
 constexpr const char* kKind = "vkjr2.turbulence_calibration";
 constexpr double kMinCoverage = 0.02;
 
-std::string num(double v) {
-  char buf[40];
-  std::snprintf(buf, sizeof buf, "%.17g", v);
-  return buf;
-}
+std::string num(double x) { return detail::number_text(x, 17); }
 
 double parse_number(const std::map<std::string, std::string>& meta, const std::string& key,
                     const std::filesystem::path& path) {

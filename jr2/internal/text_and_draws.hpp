@@ -3,6 +3,7 @@
 #pragma once
 
 #include <cstdint>
+#include <cstdio>
 #include <string>
 
 namespace vkjr2::jr2::detail {
@@ -30,6 +31,14 @@ std::uint64_t draw_below(Next&& next, std::uint64_t n) {
   std::uint64_t r = next();
   while (r >= limit) r = next();
   return r % n;
+}
+
+// A number as text with `digits` significant digits (printf's %.*g): 17
+// round-trips a double exactly, 9 a float.
+inline std::string number_text(double x, int digits) {
+  char b[48];
+  std::snprintf(b, sizeof b, "%.*g", digits, x);
+  return b;
 }
 
 // A CSV field: quoted (inner quotes doubled) when it holds a comma, a quote
