@@ -11,6 +11,8 @@
 #include <cstdlib>
 #include <cstring>
 #include <limits>
+#include <sstream>
+#include <string>
 #include <system_error>
 
 namespace vkjr2::cli {
@@ -110,6 +112,14 @@ CLI::Validator integer_range(std::int64_t lo, std::int64_t hi) {
         return {};
       },
       "in " + range);
+}
+
+std::vector<std::string> split_list(const std::string& text) {
+  std::vector<std::string> out;
+  std::stringstream ss(text);
+  std::string item;
+  while (std::getline(ss, item, ',')) out.push_back(item);
+  return out;
 }
 
 std::uint64_t parse_seed(const std::string& text, const std::string& option) {

@@ -17,6 +17,7 @@
 #include <initializer_list>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace vkjr2::cli {
 
@@ -72,6 +73,9 @@ std::string lower_extension(const std::filesystem::path& path);
 // Whether the extension (any case) is one of `extensions` (".png", ".jpg").
 bool has_extension(const std::filesystem::path& path,
                    std::initializer_list<const char*> extensions);
+// The items of a comma-separated option value ("a,b,,c" → a, b, "", c).
+std::vector<std::string> split_list(const std::string& text);
+
 // Throws UsageError unless the extension is one of `allowed` (".png", ".jpg").
 void check_extension(const std::filesystem::path& path, std::initializer_list<const char*> allowed,
                      const std::string& what);

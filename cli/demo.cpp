@@ -1,4 +1,5 @@
-// vkjr2 demo: the turbulence-vs-recognition study on media Debian and npm ship.
+// vkjr2 demo-turbulence: the turbulence-vs-recognition study on media Debian
+// and npm ship.
 #include <vkjr2/jr2/faces.hpp>
 #include <vkjr2/jr2/metrics.hpp>
 #include <vkjr2/kernels/elementwise.hpp>
@@ -44,7 +45,7 @@ constexpr std::array<const char*, 3> kStrengths{"weak", "moderate", "strong"};
 constexpr double kMatchIou = 0.3;  // a degraded detection is the clean face it overlaps this much
 
 struct DemoArgs {
-  std::string out = "out/demo", device, video = kVideo;
+  std::string out = "out/demo_turbulence", device, video = kVideo;
   int frames = 2, video_frames = 16, width = 640, photos = 6;
   std::uint64_t seed = 1;
   bool quiet = false, force = false, json_out = false;
@@ -332,10 +333,10 @@ void run_demo(const DemoArgs& a) {
 
 }  // namespace
 
-void add_demo(CLI::App& app) {
+void add_demo_turbulence(CLI::App& app) {
   auto a = std::make_shared<DemoArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "demo", "The turbulence-vs-recognition study on the sample photos and video");
+      "demo-turbulence", "The turbulence-vs-recognition study on the sample photos and video");
   cmd->footer(
       "Simulates turbulence at three strengths (weak, moderate, strong presets; fixed seeds) on "
       "face-api's sample\n"
@@ -344,8 +345,8 @@ void add_demo(CLI::App& app) {
       "strength the detection rate, the descriptor distance and cosine to the clean face, and "
       "Rank-1 against the\n"
       "clean gallery. Writes montage.png, vtest_strong.avi, results.json and report.md.\n"
-      "Example:\n  vkjr2 demo --out out/demo --force");
-  cmd->add_option("--out", a->out, "Output folder")->default_val("out/demo");
+      "Example:\n  vkjr2 demo-turbulence --out out/demo_turbulence --force");
+  cmd->add_option("--out", a->out, "Output folder")->default_val("out/demo_turbulence");
   cmd->add_option("--frames", a->frames, "Frames of each short video")
       ->default_val(2)
       ->check(integer_range(1, 1000));

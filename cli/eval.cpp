@@ -58,14 +58,6 @@ struct EvalArgs {
 constexpr std::array<const char*, 7> kOutputs = {"results.json",   "report.md", "scores.csv",
                                                  "roc.png",        "cmc.png",   "fnir_fpir.png",
                                                  "rank_change.png"};
-std::vector<std::string> split_list(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(item);
-  return out;
-}
-
 // --method's list: comma-separated, where gated:MODEL,GATE keeps its comma.
 std::vector<std::string> split_methods(const std::string& text) {
   std::vector<std::string> out;

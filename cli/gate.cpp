@@ -48,14 +48,6 @@ struct GateArgs {
   bool descriptor = false, quiet = false, force = false, json_out = false;
 };
 
-std::vector<std::string> split_list(const std::string& text) {
-  std::vector<std::string> out;
-  std::stringstream ss(text);
-  std::string item;
-  while (std::getline(ss, item, ',')) out.push_back(item);
-  return out;
-}
-
 // One labelled set: a benchmark's probes of some splits.
 struct LabelSet {
   std::string role;  // "train" or "validation"

@@ -37,6 +37,7 @@ int run(int argc, char** argv) {
       "Images up to 4096x4096 pixels.");
   vkjr2::cli::add_dataset(app);
   vkjr2::cli::add_demo(app);
+  vkjr2::cli::add_demo_turbulence(app);
   vkjr2::cli::add_devices(app);
   vkjr2::cli::add_eval(app);
   vkjr2::cli::add_restore(app);

@@ -309,9 +309,10 @@ std::string scores_csv(const Evaluation& e) {
   for (const ProbeRecord& r : e.records) {
     for (std::size_t g = 0; g < r.scores.size(); ++g) {
       std::snprintf(score, sizeof score, "%.9f", r.scores[g]);
-      out << r.method << "," << r.align << "," << r.strength << "," << detail::csv_field(r.file)
-          << "," << detail::csv_field(e.gallery[g]) << "," << score << ","
-          << (int(g) == r.mate ? 1 : 0) << "\n";
+      out << detail::csv_field(r.method) << "," << detail::csv_field(r.align) << ","
+          << detail::csv_field(r.strength) << "," << detail::csv_field(r.file) << ","
+          << detail::csv_field(e.gallery[g]) << "," << score << "," << (int(g) == r.mate ? 1 : 0)
+          << "\n";
     }
   }
   return out.str();

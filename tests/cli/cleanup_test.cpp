@@ -112,7 +112,7 @@ TEST(CliCleanup, FailedDemoLeavesNoFolder) {
   TempDir tmp("cleanup_demo");
   std::ofstream(tmp.path / "bad.avi") << "not a video at all";
   const fs::path out = tmp.path / "demo_out";
-  const auto r = run_cli("demo --out " + out.string() + " --video " +
+  const auto r = run_cli("demo-turbulence --out " + out.string() + " --video " +
                          (tmp.path / "bad.avi").string() + " --photos 1 --quiet");
   EXPECT_EQ(r.code, 1) << r.output;
   EXPECT_EQ(error_lines(r.output), 1) << r.output;

@@ -33,10 +33,10 @@ TEST(CliDocs, EveryCommandsHelpIsInDocsCliMd) {
   const std::string docs = read_docs();
   ASSERT_FALSE(docs.empty()) << "docs/cli.md is missing";
   for (const char* c :
-       {"",          "dataset",      "dataset make", "dataset merge", "eval",
-        "gate",      "gate train",   "demo",         "devices",       "detect",
-        "embed",     "verify",       "identify",     "simulate",      "wave",
-        "sim-train", "sim-validate", "bench",        "bench sim",     "bench kernels"}) {
+       {"",           "dataset",   "dataset make",    "dataset merge", "eval",      "gate",
+        "gate train", "demo",      "demo-turbulence", "devices",       "detect",    "embed",
+        "verify",     "identify",  "simulate",        "wave",          "sim-train", "sim-validate",
+        "bench",      "bench sim", "bench kernels"}) {
     const std::string h = help(c);
     EXPECT_NE(h.find("Usage"), std::string::npos) << c;
     EXPECT_NE(docs.find("```\n" + h + "```"), std::string::npos)

@@ -276,10 +276,10 @@ TEST(CliSimulate, RgbWavelengthsBlurEachChannelAtItsOwn) {
   EXPECT_FALSE(fs::exists(tmp.path / "x.png"));
 }
 
-TEST(CliDemo, SmallStudyWritesEveryOutput) {
+TEST(CliDemoTurbulence, SmallStudyWritesEveryOutput) {
   TempDir tmp("demo");
   const fs::path out = tmp.path / "demo";
-  auto r = run_cli("demo --out " + out.string() +
+  auto r = run_cli("demo-turbulence --out " + out.string() +
                    " --photos 1 --frames 1 --video-frames 2 --width 320 --json --quiet");
   ASSERT_EQ(r.code, 0) << r.output;
   const json j = parse_json(r.output);
@@ -293,11 +293,11 @@ TEST(CliDemo, SmallStudyWritesEveryOutput) {
   for (const char* f : {"montage.png", "vtest_strong.avi", "results.json", "report.md"})
     EXPECT_TRUE(fs::exists(out / f)) << f;
   // Existing outputs are kept without --force; a missing video is a clear error.
-  r = run_cli("demo --out " + out.string() +
+  r = run_cli("demo-turbulence --out " + out.string() +
               " --photos 1 --frames 1 --video-frames 1 --width 320 --quiet");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("--force"), std::string::npos) << r.output;
-  r = run_cli("demo --out " + out.string() + " --video /nonexistent.avi --quiet");
+  r = run_cli("demo-turbulence --out " + out.string() + " --video /nonexistent.avi --quiet");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.output.find("/nonexistent.avi is missing"), std::string::npos) << r.output;
 }
