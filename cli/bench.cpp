@@ -102,8 +102,8 @@ std::vector<fs::path> candidates(const char* program) {
       "vkjr2 bench " + std::string(b.name),
       "the benchmark program " + std::string(b.program) +
           " is not built or installed (looked for " + looked + ")",
-      "build with -DVKJR2_BUILD_BENCH=ON (sim, kernels and restore are built with the command "
-      "runner), or point VKJR2_BENCH_DIR at the folder that holds it");
+      "build with -DVKJR2_BUILD_BENCH=ON (runtime and nets need it; the others are built with "
+      "the command runner), or point VKJR2_BENCH_DIR at the folder that holds it");
 }
 
 }  // namespace
