@@ -168,11 +168,7 @@ void write_plots(const fs::path& out, const jr2::Evaluation& e, bool force) {
 // and beyond, 3 no face found.
 int rank_bin(const jr2::ProbeRecord& r) {
   if (!r.acquired) return 3;
-  const double own = r.scores[std::size_t(r.mate)];
-  int rank = 1;
-  for (std::size_t g = 0; g < r.scores.size(); ++g) {
-    if (int(g) != r.mate && r.scores[g] > own) ++rank;
-  }
+  const std::size_t rank = jr2::mate_rank({r.scores, r.mate});
   return rank == 1 ? 0 : rank <= 5 ? 1 : 2;
 }
 

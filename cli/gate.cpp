@@ -92,20 +92,16 @@ LabelSet open_set(const std::string& role, const std::string& path, const std::s
   return s;
 }
 
-double cosine(const std::vector<float>& a, const std::vector<float>& b) {
-  return jr2::cosine_similarity(a, b);
-}
-
-// The mate's 1-based rank among the gallery (the gallery's size without a template).
+// The mate's 1-based rank among the gallery (jr2::mate_rank: a tie ranks the
+// mate below, so a probe without a template ranks last).
 int mate_rank(const std::vector<float>& probe, const std::vector<std::vector<float>>& gallery,
               int mate) {
-  if (probe.empty()) return int(gallery.size());
-  const double own = cosine(probe, gallery[std::size_t(mate)]);
-  int rank = 1;
-  for (std::size_t g = 0; g < gallery.size(); ++g) {
-    if (int(g) != mate && cosine(probe, gallery[g]) > own) ++rank;
+  jr2::Search search{{}, mate};
+  for (const auto& g : gallery) {
+    search.scores.push_back(probe.empty() ? jr2::kNoTemplateScore
+                                          : jr2::cosine_similarity(probe, g));
   }
-  return rank;
+  return int(jr2::mate_rank(search));
 }
 
 ojson sample_json(const jr2::GateSample& s) {
@@ -193,7 +189,7 @@ std::vector<jr2::GateSample> label(ProbeContext& ctx, const Method& degraded,
       if (!t_raw.empty()) {
         const std::vector<float> clean =
             ctx.pipeline.describe_gallery(ctx.stream, video.clean())[std::size_t(al)];
-        s.quality = cosine(t_raw, clean);
+        s.quality = jr2::cosine_similarity(t_raw, clean);
       } else {
         s.quality = std::numeric_limits<double>::quiet_NaN();
       }
