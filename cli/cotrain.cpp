@@ -5,6 +5,7 @@
 #include <vkjr2/jr2/clip_set.hpp>
 #include <vkjr2/jr2/cotrain.hpp>
 #include <vkjr2/jr2/restorer.hpp>
+#include <vkjr2/nets/safetensors.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/image.hpp>
@@ -42,6 +43,8 @@ struct CoTrainArgs {
   std::string order = "restore-first", layers = "all", split = "val";
   std::vector<double> d_over_r0{1, 8};
   int unpaired_frames = 12;
+  int unpaired_per_identity = 0;  // 0: one wave-optics clip per training clip
+  double unpaired_source_step = 16;
   jr2::CoTrainOptions o;
 };
 
@@ -77,21 +80,39 @@ std::vector<jr2::CoTrainFace> training_faces(const fs::path& manifest_path,
 
 // Unpaired faces from a wave-optics clip set of the training faces (made
 // and saved when the file does not exist): each clip's frames, labelled by
-// the face its source names.
+// the face its source names. With per_identity > 0 the set holds the first
+// that many training clips of each identity (in manifest order).
 std::vector<jr2::CoTrainFace> unpaired_faces(const Device& device, const fs::path& path,
-                                             const std::vector<jr2::CoTrainFace>& clean, int frames,
-                                             std::uint64_t seed, bool quiet) {
+                                             const std::vector<jr2::CoTrainFace>& clean,
+                                             const CoTrainArgs& a, bool quiet) {
   jr2::ClipSet set;
   if (fs::exists(path)) {
     set = jr2::load_clip_set(path);
   } else {
+    // Before the slow part: the restorer reads a window of its T frames.
+    const jr2::RestorerConfig net = jr2::RestorerConfig::from_metadata(
+        nets::read_safetensors(a.pretrained).metadata, a.pretrained);
+    if (a.unpaired_frames < net.frames) {
+      throw UsageError("--unpaired-frames",
+                       std::to_string(a.unpaired_frames) + " frames per clip, while " +
+                           fs::path(a.pretrained).filename().string() + " reads " +
+                           std::to_string(net.frames),
+                       "pass --unpaired-frames " + std::to_string(net.frames) + " or more");
+    }
     std::vector<jr2::TrainImage> images;
-    for (const jr2::CoTrainFace& f : clean) images.push_back({f.source, f.clean});
+    std::map<std::string, int> taken;  // clips per identity so far
+    for (const jr2::CoTrainFace& f : clean) {
+      if (a.unpaired_per_identity > 0 && taken[f.identity]++ >= a.unpaired_per_identity) continue;
+      images.push_back({f.source, f.clean});
+    }
     jr2::WaveClipOptions wo;
     wo.clips = int(images.size());
-    wo.frames = frames;
+    wo.frames = a.unpaired_frames;
     wo.size = int(clean.front().clean.shape[0]);
-    wo.seed = seed;
+    wo.seed = a.o.seed;
+    wo.wave.source_step_px = a.unpaired_source_step;
+    wo.d_over_r0_lo = a.d_over_r0[0];  // the training range
+    wo.d_over_r0_hi = a.d_over_r0[1];
     Progress bar("cotrain: wave-optics clips (" + path.string() + ")",
                  std::size_t(wo.clips) * std::size_t(wo.frames), quiet);
     set = jr2::make_wave_clips(device, images, wo,
@@ -156,7 +177,7 @@ void run_cotrain(CoTrainArgs& a) {
   Device device = open_device(run.device);
   std::vector<jr2::CoTrainFace> val = faces;  // other realizations of the same clips
   if (!a.unpaired.empty()) {
-    faces = unpaired_faces(device, a.unpaired, faces, a.unpaired_frames, o.seed, run.quiet);
+    faces = unpaired_faces(device, a.unpaired, faces, a, run.quiet);
   }
   const std::size_t n_faces = faces.size();
   jr2::CoTrainer trainer(device, o, a.pretrained, std::move(faces), std::move(val),
@@ -190,6 +211,12 @@ void run_cotrain(CoTrainArgs& a) {
   {
     Progress fill("cotrain: faces and the clip pool", std::size_t(o.pool), run.quiet);
     trainer.prepare([&](int done, int) { fill.update(std::size_t(done)); });
+  }
+  if (const auto& faceless = trainer.faceless_clips(); !faceless.empty()) {
+    log_warn("cotrain: " + std::to_string(faceless.size()) + " of " + std::to_string(n_faces) +
+             " unpaired clips left out: the detector finds no face in them (first: " +
+             faceless.front() + ")");
+    write_log({{"faceless_clips", faceless}});
   }
   Progress bar("cotrain", std::size_t(o.steps), run.quiet);
   bar.update(std::size_t(trainer.step()));
@@ -259,6 +286,7 @@ void run_cotrain(CoTrainArgs& a) {
                               {"checkpoint", run.checkpoint},
                               {"steps", trainer.step()},
                               {"training_clips", n_faces},
+                              {"faceless_clips", trainer.faceless_clips().size()},
                               {"identities", trainer.identities().size()},
                               {"trainable_parameters", trainer.trainable_parameters()},
                               {"student", row_json(last.student)},
@@ -329,6 +357,16 @@ void add_cotrain(CLI::App& app) {
                   "Frames per wave-optics clip when --unpaired makes the set")
       ->default_val(a->unpaired_frames)
       ->check(integer_range(1, 256));
+  cmd->add_option("--unpaired-per-identity", a->unpaired_per_identity,
+                  "Wave-optics clips per identity when --unpaired makes the set (0: one per "
+                  "training clip)")
+      ->default_val(a->unpaired_per_identity)
+      ->check(integer_range(0, 1000));
+  cmd->add_option("--unpaired-source-step", a->unpaired_source_step,
+                  "Point-source spacing in pixels of the wave-optics clips --unpaired makes "
+                  "(larger: faster, coarser PSF sampling)")
+      ->default_val(a->unpaired_source_step)
+      ->check(finite_range(1, 512));
   cmd->add_option("--window", o.window, "Restored face window side in pixels")
       ->default_val(o.window)
       ->check(integer_range(64, 512));

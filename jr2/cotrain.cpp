@@ -19,6 +19,7 @@
 #include <cstdio>
 #include <limits>
 #include <map>
+#include <optional>
 #include <random>
 #include <set>
 #include <utility>
@@ -184,6 +185,7 @@ struct CoTrainer::Impl {
   std::vector<nets::FaceBox> face_box, val_box;
   std::vector<float> centres;  // [classes, 128] clean centres (the fixed yardstick)
   bool prepared = false;
+  std::vector<std::string> dropped;  // unpaired training clips without a detected face
   // The pool: clip k in slot k % pool.
   Tensor pool_frames;
   std::vector<nets::FaceBox> pool_box;
@@ -312,8 +314,9 @@ struct CoTrainer::Impl {
   }
 
   // The face box of a clip: the strongest detection in the clean clip (or
-  // the mean of the frames), trying larger detector inputs first.
-  nets::FaceBox find_face(const CoTrainFace& face, const Tensor& clip) {
+  // the mean of the frames), trying larger detector inputs first; nullopt
+  // when none is found.
+  std::optional<nets::FaceBox> detect_face(const Tensor& clip) {
     std::vector<float> mean(std::size_t(3 * size * size), 0.f);
     const std::vector<float> all = clip.download();
     const std::size_t plane = mean.size(), n = all.size() / plane;
@@ -327,8 +330,15 @@ struct CoTrainer::Impl {
       const auto found = analyzer.detect(stream, image, fo);
       if (!found.empty()) return found.front().box;
     }
-    throw InvalidArgument("cotrain", "no face found in " + face.source,
-                          "leave the clip out, or use clips with one visible face");
+    return std::nullopt;
+  }
+  nets::FaceBox find_face(const CoTrainFace& face, const Tensor& clip) {
+    const std::optional<nets::FaceBox> box = detect_face(clip);
+    if (!box) {
+      throw InvalidArgument("cotrain", "no face found in " + face.source,
+                            "leave the clip out, or use clips with one visible face");
+    }
+    return *box;
   }
 
   // Descriptors [n, 128] of frames [n, 3, H, W] (pixels 0..255), aligned by
@@ -345,9 +355,30 @@ struct CoTrainer::Impl {
 
   void prepare_faces() {
     if (prepared) return;
+    // An unpaired clip whose face the detector misses is left out, as a
+    // pipeline on real footage would (paired clips have a clean frame).
+    std::vector<CoTrainFace> kept;
+    std::vector<int> kept_labels;
     for (std::size_t i = 0; i < faces.size(); ++i) {
-      face_clip.push_back(upload_face(faces[i]));
-      face_box.push_back(find_face(faces[i], face_clip.back()));
+      Tensor clip = upload_face(faces[i]);
+      const std::optional<nets::FaceBox> box =
+          faces[i].paired() ? find_face(faces[i], clip) : detect_face(clip);
+      if (!box) {
+        dropped.push_back(faces[i].source);
+        continue;
+      }
+      face_clip.push_back(std::move(clip));
+      face_box.push_back(*box);
+      kept.push_back(std::move(faces[i]));
+      kept_labels.push_back(labels[i]);
+    }
+    faces = std::move(kept);
+    labels = std::move(kept_labels);
+    for (std::size_t l = 0; l < identities.size(); ++l) {
+      require(std::find(labels.begin(), labels.end(), int(l)) != labels.end(),
+              "no face found in any training clip of identity '" + identities[l] + "' (" +
+                  std::to_string(dropped.size()) + " clips without one)",
+              "use more clips per identity or a weaker turbulence range");
     }
     for (std::size_t i = 0; i < val.size(); ++i) {
       val_clip.push_back(upload_face(val[i]));
@@ -506,6 +537,8 @@ int CoTrainer::step() const noexcept { return int(impl_->step()); }
 const std::vector<std::string>& CoTrainer::identities() const { return impl_->identities; }
 const Restorer& CoTrainer::student() const { return *impl_->model->student; }
 const nets::AdaFaceHead& CoTrainer::head() const { return *impl_->model->head; }
+
+const std::vector<std::string>& CoTrainer::faceless_clips() const { return impl_->dropped; }
 
 std::int64_t CoTrainer::trainable_parameters() const {
   std::int64_t n = 0;

@@ -142,6 +142,9 @@ class CoTrainer {
 
   // The identities in class order.
   const std::vector<std::string>& identities() const;
+  // The unpaired training clips left out because the detector found no face
+  // in their mean frame (known after prepare()).
+  const std::vector<std::string>& faceless_clips() const;
   // Parameters that train (student's groups + the head's centres).
   std::int64_t trainable_parameters() const;
 

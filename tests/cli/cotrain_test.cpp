@@ -5,9 +5,12 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdint>
 #include <filesystem>
 #include <fstream>
+#include <map>
 #include <string>
+#include <vector>
 
 #include "support/cli_checks.hpp"
 #include "support/cli_files.hpp"
@@ -174,6 +177,53 @@ TEST(CliCotrain, BadOptionsAreUsageErrors) {
   EXPECT_EQ(r.code, 2) << r.output;
   EXPECT_NE(r.output.find("'windw' is not an option"), std::string::npos) << r.output;
   EXPECT_FALSE(fs::exists(out));
+}
+
+// The tensor shapes a safetensors file's header declares, by name.
+std::map<std::string, std::vector<std::int64_t>> safetensors_shapes(const fs::path& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::uint64_t n = 0;
+  in.read(reinterpret_cast<char*>(&n), sizeof n);
+  std::string header(n, '\0');
+  in.read(header.data(), std::streamsize(n));
+  std::map<std::string, std::vector<std::int64_t>> shapes;
+  const json parsed = json::parse(header);
+  for (const auto& [name, entry] : parsed.items()) {
+    if (name != "__metadata__") shapes[name] = entry["shape"].get<std::vector<std::int64_t>>();
+  }
+  return shapes;
+}
+
+// Unpaired co-training makes its wave-optics set (here one clip of two frames
+// per identity, coarse point sources) and trains on it.
+TEST(CliCotrain, UnpairedMakesOneWaveClipPerIdentity) {
+  TempDir tmp("cli_cotrain_unpaired");
+  const std::string common = tiny_setup(tmp.path);
+  ASSERT_FALSE(HasFailure());
+  const fs::path wave = tmp.path / "wave.safetensors", model = tmp.path / "un.safetensors";
+  auto r = run_cli("cotrain " + model.string() + common + " --steps 1 --unpaired " + wave.string() +
+                   " --unpaired-per-identity 1 --unpaired-frames 2 --unpaired-source-step 80"
+                   " --d-over-r0 1 2");
+  ASSERT_EQ(r.code, 0) << r.output;
+  const json j = parse_json(r.output);
+  EXPECT_EQ(j["identities"], 3);
+  EXPECT_EQ(j["training_clips"].get<int>(), 3) << r.output;
+  EXPECT_LE(j["faceless_clips"].get<int>(), 1) << r.output;
+  const auto shapes = safetensors_shapes(wave);
+  ASSERT_TRUE(shapes.contains("degraded")) << wave;
+  const std::vector<std::int64_t> want{3, 2, 3, 160, 160};
+  EXPECT_EQ(shapes.at("degraded"), want);
+  r = run_cli("cotrain " + model.string() + common + " --steps 1 --unpaired " + wave.string() +
+              " --unpaired-per-identity -1 --force");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--unpaired-per-identity"), std::string::npos) << r.output;
+  // Fewer frames than the restorer reads: refused before the set is made.
+  const fs::path short_set = tmp.path / "short.safetensors";
+  r = run_cli("cotrain " + model.string() + common + " --steps 1 --unpaired " + short_set.string() +
+              " --unpaired-frames 1 --force");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("--unpaired-frames 2"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(short_set));
 }
 
 }  // namespace

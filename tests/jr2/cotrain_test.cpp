@@ -13,6 +13,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <memory>
@@ -214,10 +215,20 @@ TEST(CoTrainer, FineTuneAlignFirstAndUnpairedTakeSteps) {
     f.clean = HostTensor{};
     unpaired.push_back(std::move(f));
   }
+  // A clip in which the detector finds no face (flat grey) is left out.
+  CoTrainFace grey = unpaired.front();
+  grey.source = "grey";
+  for (HostTensor& im : grey.frames) std::fill(im.values.begin(), im.values.end(), 128.f);
+  unpaired.push_back(grey);
   auto t = make(o, run.teacher, unpaired);
   const CoTrainStepReport r = t->train_step();
   EXPECT_TRUE(std::isfinite(r.loss) && r.loss > 0);
   EXPECT_EQ(t->options_metadata().at("cotrain.data"), "unpaired");
+  EXPECT_EQ(t->faceless_clips(), std::vector<std::string>{"grey"});
+  // An identity left with no face: an error naming it.
+  unpaired.erase(unpaired.begin());
+  auto lost = make(o, run.teacher, unpaired);
+  test::expect_invalid_argument([&] { lost->prepare(); }, "'" + grey.identity + "'");
 }
 
 TEST(CoTrainer, BadOptionsAndFacesAreClearErrors) {
