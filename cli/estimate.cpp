@@ -151,24 +151,6 @@ GreyVideo load_frames(const Item& item, const jr2::ClipSet* set, int max_frames)
   return g;
 }
 
-// OpenCV's DIS optical flow (medium preset) of every frame against the
-// frames' 8-bit mean, as the flow jr2::tilt_statistics reads: frame t moved by
-// flow_t(x) registers onto the mean.
-jr2::TiltMeasure measure_dis(const GreyVideo& g, const jr2::TiltOptions& options) {
-  jr2::check_grey_video(g.pixels, g.frames, g.height, g.width, options);
-  const DisRegistration r = dis_register(g.pixels, g.frames, g.height, g.width);
-  return jr2::tilt_statistics(r.flow, g.frames, g.height, g.width,
-                              jr2::texture_map(r.mean, g.height, g.width, options.radius), options);
-}
-
-jr2::TiltMeasure measure(const Device& device, const GreyVideo& g,
-                         const jr2::TurbulenceCalibration& cal) {
-  if (cal.registration == "dis") return measure_dis(g, cal.tilt);
-  Stream stream(device);
-  return jr2::measure_tilt(
-      stream, Tensor::from(device, Shape{g.frames, 1, g.height, g.width}, g.pixels), cal.tilt);
-}
-
 struct Measured {
   Item item;
   jr2::TurbulenceEstimate estimate;
@@ -183,7 +165,8 @@ std::vector<Measured> measure_all(const Device& device, const std::vector<Item>&
   for (const Item& item : items) {
     const GreyVideo g = load_frames(item, set, max_frames);
     try {
-      out.push_back({item, jr2::estimate_turbulence(measure(device, g, cal), optics, cal)});
+      out.push_back(
+          {item, estimate_grey_video(device, g.pixels, g.frames, g.height, g.width, optics, cal)});
     } catch (const InvalidArgument& e) {
       throw Error("estimate", item.name + ": " + e.problem(), e.fix());
     }
@@ -240,7 +223,12 @@ json result_json(const Measured& m) {
   j["tilt_lag1_covariance_px2"] = m.estimate.tilt.lag1_covariance_px2;
   j["tilt_mean_variance_px2"] = m.estimate.tilt.mean_variance_px2;
   j["coverage"] = m.estimate.tilt.coverage;
-  j["frames"] = m.estimate.tilt.frames;
+  if (m.estimate.spectrum.frames > 0) {
+    j["spectral_fluctuation"] = m.estimate.spectrum.fluctuation;
+    j["blur"] = m.estimate.blur;
+    j["spectral_tiles"] = m.estimate.spectrum.tiles;
+  }
+  j["frames"] = std::max(m.estimate.tilt.frames, m.estimate.spectrum.frames);
   if (m.item.truth > 0) {
     j["true_d_over_r0"] = m.item.truth;
     j["error"] = m.estimate.d_over_r0 / m.item.truth - 1.0;
@@ -293,6 +281,7 @@ void run_estimate(const EstimateArgs& a) {
       measure_all(device, items, &set, a.c.max_frames, optics, cal, a.c.quiet, "estimate");
   json j = {
       {"calibration", a.raw ? "none (raw)" : (a.calibration.empty() ? "shipped" : a.calibration)},
+      {"cues", cal.cues()},
       {"videos", json::array()}};
   for (const Measured& m : results) j["videos"].push_back(result_json(m));
   const json summary = error_summary(results, false);
@@ -307,12 +296,17 @@ void run_estimate(const EstimateArgs& a) {
     return;
   }
   for (const Measured& m : results) {
-    std::printf(
-        "%s: D/r0 = %.2f, r0 = %.1f cm (tilt %.3f px rms over %d frames, %.0f %% of the "
-        "frame registered)",
-        m.item.name.c_str(), m.estimate.d_over_r0, 100 * m.estimate.r0_m,
-        std::sqrt(m.estimate.tilt.variance_px2), m.estimate.tilt.frames,
-        100 * m.estimate.tilt.coverage);
+    const jr2::TurbulenceEstimate& e = m.estimate;
+    std::printf("%s: D/r0 = %.2f, r0 = %.1f cm (", m.item.name.c_str(), e.d_over_r0, 100 * e.r0_m);
+    if (e.tilt.frames > 0) {
+      std::printf("tilt %.3f px rms over %d frames, %.0f %% of the frame registered",
+                  std::sqrt(e.tilt.variance_px2), e.tilt.frames, 100 * e.tilt.coverage);
+    }
+    if (e.spectrum.frames > 0) {
+      std::printf("%sspectral fluctuation %.3f over %d frames", e.tilt.frames > 0 ? "; " : "",
+                  e.spectrum.fluctuation, e.spectrum.frames);
+    }
+    std::printf(")");
     if (m.item.truth > 0) {
       std::printf(", true %.2f (%+.0f %%)", m.item.truth,
                   100 * (m.estimate.d_over_r0 / m.item.truth - 1));
@@ -326,14 +320,35 @@ void run_estimate(const EstimateArgs& a) {
 
 struct TrainArgs {
   Common c;
-  std::string output, registration = "dis";
+  std::string output, registration = "dis", cues = "tilt+spectrum";
   jr2::TiltOptions tilt;
-  double rho = 0.9;
+  jr2::SpectrumOptions spectrum;
+  std::vector<double> band{spectrum.band_lo, spectrum.band_hi};
+  double rho = 0.9, blur_rho = 0.6;
   bool force = false;
 };
 
-void run_train(const TrainArgs& a) {
+// The formula a calibration applies, as text.
+std::string formula(const jr2::TurbulenceCalibration& c) {
+  char buf[160];
+  int n = std::snprintf(buf, sizeof buf, "D/r0 = %.4f", c.gain);
+  if (c.uses_tilt())
+    n += std::snprintf(buf + n, sizeof buf - std::size_t(n), " · raw^%.4f", c.exponent);
+  if (c.uses_spectrum()) {
+    std::snprintf(buf + n, sizeof buf - std::size_t(n), " · blur^%.4f", c.blur_exponent);
+  }
+  return buf;
+}
+
+void run_train(TrainArgs& a) {
   a.tilt.validate();
+  a.spectrum.band_lo = a.band[0];
+  a.spectrum.band_hi = a.band[1];
+  try {
+    a.spectrum.validate();
+  } catch (const InvalidArgument& e) {
+    throw UsageError("--band/--tile/--stride", e.problem(), e.fix());
+  }
   check_output_file(a.output, a.force, "OUT");
   check_extension(a.output, {".safetensors"}, "OUT");
   if (a.c.benchmark.empty() && a.c.clips.empty()) {
@@ -345,23 +360,36 @@ void run_train(const TrainArgs& a) {
   const std::vector<Item> items = collect(a.c, {}, &set);
   watch_output_folder(std::filesystem::path(a.output).parent_path());
   const Device device = open_device(a.c.device);
+  // The raw measure: each cue of --cues with exponent 1 (their product is
+  // what "raw" reports), then the fit of their exponents.
   jr2::TurbulenceCalibration raw_cal = jr2::TurbulenceCalibration::identity();
   raw_cal.tilt = a.tilt;
   raw_cal.tilt_correlation = a.rho;
   raw_cal.registration = a.registration;
+  raw_cal.spectrum = a.spectrum;
+  raw_cal.blur_correlation = a.blur_rho;
+  raw_cal.exponent = a.cues == "spectrum" ? 0.0 : 1.0;
+  raw_cal.blur_exponent = a.cues == "tilt" ? 0.0 : 1.0;
   auto results = measure_all(device, items, &set, a.c.max_frames, optics, raw_cal, a.c.quiet,
                              "estimate-train");
-  std::vector<double> raw, truth;
+  std::vector<double> raw, blur, truth;
   for (const Measured& m : results) {
-    raw.push_back(m.estimate.raw_d_over_r0);
+    if (raw_cal.uses_tilt()) raw.push_back(m.estimate.raw_d_over_r0);
+    if (raw_cal.uses_spectrum()) blur.push_back(m.estimate.blur);
     truth.push_back(m.item.truth);
   }
-  jr2::TurbulenceCalibration cal = jr2::fit_calibration(raw, truth, a.tilt, a.rho, a.registration);
-  for (Measured& m : results) {
-    m.estimate.d_over_r0 = cal.gain * std::pow(m.estimate.raw_d_over_r0, cal.exponent);
-    m.estimate.r0_m = optics.optics.aperture_m / m.estimate.d_over_r0;
+  jr2::TurbulenceCalibration cal;
+  try {
+    cal = jr2::fit_calibration(raw_cal, raw, blur, truth);
+  } catch (const InvalidArgument& e) {
+    throw Error("estimate-train", e.problem(), e.fix());
   }
-  const json before = error_summary(results, true), after = error_summary(results, false);
+  // The tilt's own errors before the fit (its raw D/r0 is a D/r0).
+  const json before = raw_cal.uses_tilt() ? error_summary(results, true) : json();
+  for (Measured& m : results) {
+    m.estimate = jr2::estimate_turbulence(m.estimate.tilt, m.estimate.spectrum, optics, cal);
+  }
+  const json after = error_summary(results, false);
   cal.metadata["fitted_on"] =
       a.c.benchmark.empty() ? a.c.clips : a.c.benchmark + " split " + a.c.split;
   cal.metadata["videos"] = std::to_string(results.size());
@@ -369,14 +397,20 @@ void run_train(const TrainArgs& a) {
   cal.metadata["errors"] = after.dump();
   cal.save(a.output);
   if (a.c.json_out) {
-    const json j = {{"output", a.output},       {"gain", cal.gain},     {"exponent", cal.exponent},
-                    {"videos", results.size()}, {"raw_errors", before}, {"errors", after}};
+    const json j = {{"output", a.output},
+                    {"cues", cal.cues()},
+                    {"gain", cal.gain},
+                    {"exponent", cal.exponent},
+                    {"blur_exponent", cal.blur_exponent},
+                    {"videos", results.size()},
+                    {"raw_errors", before},
+                    {"errors", after}};
     std::printf("%s\n", j.dump(2).c_str());
     return;
   }
-  std::printf("estimate-train: D/r0 = %.4f · raw^%.4f from %zu videos -> %s\n", cal.gain,
-              cal.exponent, results.size(), a.output.c_str());
-  print_summary(before, "raw (uncalibrated) errors");
+  std::printf("estimate-train: %s from %zu videos -> %s\n", formula(cal).c_str(), results.size(),
+              a.output.c_str());
+  print_summary(before, "the tilt's raw (uncalibrated) errors");
   print_summary(after, "calibrated errors (on the fitting videos)");
 }
 
@@ -385,15 +419,19 @@ void run_train(const TrainArgs& a) {
 void add_estimate(CLI::App& app) {
   auto a = std::make_shared<EstimateArgs>();
   CLI::App* cmd = app.add_subcommand(
-      "estimate", "Estimate the turbulence strength (D/r0, r0) of videos from their tilt");
+      "estimate", "Estimate the turbulence strength (D/r0, r0) of videos from their tilt and blur");
   cmd->footer(
-      "The frames are registered against their mean (dense optical flow: OpenCV's DIS, or\n"
-      "vkjr2's Lucas–Kanade kernel with a calibration fitted with --registration lk); the\n"
-      "temporal variance of the displacement is the tilt variance, which the Z-tilt formula\n"
-      "σ²_θ = 0.182 (λ/D)² (D/r0)^(5/3) turns into D/r0 with the optics' pixel scale (--preset\n"
-      "or --config), corrected for the frames' correlation and calibrated on simulated videos\n"
-      "(the shipped artifacts/turbulence_estimator.safetensors; vkjr2 estimate-train makes one).\n"
-      "With --benchmark or --clips every video has a known D/r0 and the errors are reported.\n"
+      "Two cues, each with the optics' scale (--preset or --config). The tilt: the frames are\n"
+      "registered against their mean (dense optical flow: OpenCV's DIS, or vkjr2's Lucas–Kanade\n"
+      "kernel with a calibration fitted with --registration lk); the temporal variance of the\n"
+      "displacement is the tilt variance, which the Z-tilt formula σ²_θ = 0.182 (λ/D)² "
+      "(D/r0)^(5/3)\n"
+      "turns into a raw D/r0. The blur: how much the power in a band of spatial frequencies (in\n"
+      "units of D/λ) fluctuates from frame to frame, the median over tiles; the scene's own\n"
+      "spectrum cancels. Each is corrected for the frames' correlation; a calibration fitted on\n"
+      "simulated videos combines them (the shipped artifacts/turbulence_estimator.safetensors;\n"
+      "vkjr2 estimate-train makes one). With --benchmark or --clips every video has a known\n"
+      "D/r0 and the errors are reported.\n"
       "Examples:\n"
       "  vkjr2 estimate probe.avi --json\n"
       "  vkjr2 estimate --benchmark bench/jr2/manifest.json --split test\n"
@@ -411,9 +449,10 @@ void add_estimate(CLI::App& app) {
   CLI::App* tc = app.add_subcommand("estimate-train",
                                     "Calibrate the turbulence estimate on videos of known D/r0");
   tc->footer(
-      "Measures the raw D/r0 of every probe video of a benchmark's --split (default val, never\n"
-      "the test split) or of a clip set, fits D/r0 = gain · raw^exponent in logs, and writes\n"
-      "the calibration with its options. The errors it prints are on the fitting videos.\n"
+      "Measures the cues (--cues) of every probe video of a benchmark's --split (default val,\n"
+      "never the test split) or of a clip set, fits D/r0 = gain · raw^a · blur^b in logs (raw:\n"
+      "the tilt's D/r0, blur: the spectral fluctuation; a cue left out has exponent 0), and\n"
+      "writes the calibration with its options. The errors it prints are on the fitting videos.\n"
       "Examples:\n"
       "  vkjr2 estimate-train artifacts/turbulence_estimator.safetensors \\\n"
       "      --benchmark bench/jr2/manifest.json --force   # the shipped calibration");
@@ -443,6 +482,26 @@ void add_estimate(CLI::App& app) {
   tc->add_option("--tilt-correlation", t->rho,
                  "Frame-to-frame correlation of the tilt the variance is corrected for")
       ->default_val(t->rho)
+      ->check(finite_range(0.0, 0.99));
+  tc->add_option("--cues", t->cues,
+                 "What the estimate reads: tilt (the frame-to-frame jitter), spectrum (the "
+                 "fluctuation of the blur) or both")
+      ->default_val(t->cues)
+      ->check(CLI::IsMember({"tilt", "spectrum", "tilt+spectrum"}));
+  tc->add_option("--band", t->band,
+                 "spectrum: the spatial-frequency band LO HI, fractions of the optics' cutoff D/λ")
+      ->expected(2)
+      ->default_str("0.1 0.17")
+      ->check(finite_range(0.0, 1.0));
+  tc->add_option("--tile", t->spectrum.tile, "spectrum: tile side (px); the median over tiles")
+      ->default_val(t->spectrum.tile)
+      ->check(integer_range(8, 4096));
+  tc->add_option("--stride", t->spectrum.stride, "spectrum: step between tiles (px)")
+      ->default_val(t->spectrum.stride)
+      ->check(integer_range(1, 4096));
+  tc->add_option("--blur-correlation", t->blur_rho,
+                 "Frame-to-frame correlation of the blur the fluctuation is corrected for")
+      ->default_val(t->blur_rho)
       ->check(finite_range(0.0, 0.99));
   tc->add_flag("--force", t->force, "Replace an existing OUT");
   tc->callback([t] { run_train(*t); });

@@ -151,12 +151,7 @@ double ProbeVideo::d_over_r0(const GateContext& g) {
     const std::vector<float> plane = image_to_planes(f, 1, 255.f);
     grey.insert(grey.end(), plane.begin(), plane.end());
   }
-  jr2::check_grey_video(grey, t, h, w, g.calibration.tilt);
-  const DisRegistration r = dis_register(grey, t, h, w);
-  const jr2::TiltMeasure tilt = jr2::tilt_statistics(
-      r.flow, t, h, w, jr2::texture_map(r.mean, h, w, g.calibration.tilt.radius),
-      g.calibration.tilt);
-  d_over_r0_ = jr2::estimate_turbulence(tilt, g.optics, g.calibration).d_over_r0;
+  d_over_r0_ = estimate_grey_video(device_, grey, t, h, w, g.optics, g.calibration).d_over_r0;
   return *d_over_r0_;
 }
 

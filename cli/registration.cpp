@@ -38,4 +38,33 @@ DisRegistration dis_register(std::span<const float> grey, int frames, int height
 
 int dis_threads() { return cv::getNumThreads(); }
 
+jr2::TiltMeasure measure_tilt_dis(std::span<const float> grey, int frames, int height, int width,
+                                  const jr2::TiltOptions& options) {
+  jr2::check_grey_video(grey, frames, height, width, options);
+  const DisRegistration r = dis_register(grey, frames, height, width);
+  return jr2::tilt_statistics(r.flow, frames, height, width,
+                              jr2::texture_map(r.mean, height, width, options.radius), options);
+}
+
+jr2::TurbulenceEstimate estimate_grey_video(const Device& device, std::span<const float> grey,
+                                            int frames, int height, int width,
+                                            const sim::Params& optics,
+                                            const jr2::TurbulenceCalibration& calibration) {
+  jr2::TiltMeasure tilt;
+  if (calibration.uses_tilt()) {
+    if (calibration.registration == "dis") {
+      tilt = measure_tilt_dis(grey, frames, height, width, calibration.tilt);
+    } else {
+      Stream stream(device);
+      tilt = jr2::measure_tilt(stream, Tensor::from(device, Shape{frames, 1, height, width}, grey),
+                               calibration.tilt);
+    }
+  }
+  jr2::SpectrumMeasure spectrum;
+  if (calibration.uses_spectrum()) {
+    spectrum = jr2::spectral_fluctuation(grey, frames, height, width, optics, calibration.spectrum);
+  }
+  return jr2::estimate_turbulence(tilt, spectrum, optics, calibration);
+}
+
 }  // namespace vkjr2::cli

@@ -5,11 +5,14 @@
 #include <vkjr2/kernels/reduce.hpp>
 #include <vkjr2/kernels/warp.hpp>
 #include <vkjr2/nets/safetensors.hpp>
+#include <vkjr2/sim/host_fft.hpp>
 #include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/tilt.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <numbers>
 #include <stdexcept>
 #include <string>
 #include <utility>
@@ -75,6 +78,143 @@ void TiltOptions::validate() const {
     throw InvalidArgument(op, "border " + std::to_string(border) + " is negative",
                           "use 0 or more pixels");
   }
+}
+
+void SpectrumOptions::validate() const {
+  const char* op = "turbulence estimate";
+  if (!(band_lo > 0 && band_lo < band_hi && band_hi <= 1.0)) {
+    throw InvalidArgument(op, "spectral band " + num(band_lo) + "..." + num(band_hi),
+                          "use 0 < low < high ≤ 1 (fractions of the cutoff D/λ)");
+  }
+  if (tile < 8 || tile > 4096 || stride < 1 || stride > tile) {
+    throw InvalidArgument(op,
+                          "tile " + std::to_string(tile) + " px, stride " + std::to_string(stride),
+                          "use tiles of 8..4096 px and a stride of 1..tile");
+  }
+}
+
+namespace {
+
+// The cutoff D/λ of the optics in cycles per pixel: IFOV / (λ/D).
+double cutoff_cycles_per_px(const sim::Params& optics) {
+  const double ifov = sim::pixel_pitch_m(optics) / optics.optics.focal_length_m;
+  return ifov * optics.optics.aperture_m / optics.optics.wavelengths_m.front();
+}
+
+// 1-D Hann window of n points (both ends 0, as numpy.hanning).
+std::vector<float> hann(int n) {
+  std::vector<float> w(std::size_t(n), 1.f);
+  if (n < 2) return w;
+  for (int i = 0; i < n; ++i) {
+    w[std::size_t(i)] = float(0.5 - 0.5 * std::cos(2.0 * std::numbers::pi * i / (n - 1)));
+  }
+  return w;
+}
+
+// Tile origins along an axis of `size` pixels: 0, stride, … while the tile
+// fits (one tile of the whole axis when it does not).
+std::vector<int> tile_origins(int size, int tile, int stride) {
+  std::vector<int> o;
+  if (size < tile) return {0};
+  for (int x = 0; x + tile <= size; x += stride) o.push_back(x);
+  return o;
+}
+
+}  // namespace
+
+SpectrumMeasure spectral_fluctuation(std::span<const float> grey, int frames, int height, int width,
+                                     const sim::Params& optics, const SpectrumOptions& options) {
+  options.validate();
+  const char* op = "turbulence estimate";
+  TiltOptions borderless;
+  borderless.border = 0;
+  check_grey_video(grey, frames, height, width, borderless);
+  SpectrumMeasure m;
+  m.frames = frames;
+  const double cutoff = cutoff_cycles_per_px(optics);
+  m.band_lo_px = options.band_lo * cutoff;
+  m.band_hi_px = options.band_hi * cutoff;
+  const int th = std::min(height, options.tile), tw = std::min(width, options.tile);
+  // The band's bins of a th×tw tile (numpy's fftfreq order).
+  std::vector<std::size_t> bins;
+  for (int u = 0; u < th; ++u) {
+    const double fy = double(u <= (th - 1) / 2 ? u : u - th) / th;
+    for (int v = 0; v < tw; ++v) {
+      const double fx = double(v <= (tw - 1) / 2 ? v : v - tw) / tw;
+      const double r = std::hypot(fx, fy);
+      if (r >= m.band_lo_px && r < m.band_hi_px) bins.push_back(std::size_t(u) * tw + v);
+    }
+  }
+  if (bins.size() < 8) {
+    throw InvalidArgument(op,
+                          "the band " + num(m.band_lo_px) + "–" + num(m.band_hi_px) +
+                              " cycles/px holds " + std::to_string(bins.size()) +
+                              " frequency bins of a " + std::to_string(tw) + "×" +
+                              std::to_string(th) + " tile",
+                          m.band_hi_px > 0.5 ? "use optics that sample the band (a finer pixel)"
+                                             : "use larger frames or tiles");
+  }
+  const std::vector<float> wy = hann(th), wx = hann(tw);
+  const std::size_t tile_px = std::size_t(th) * std::size_t(tw);
+  const std::size_t plane = std::size_t(height) * std::size_t(width);
+  sim::FftwFloats data(std::size_t(frames) * tile_px * 2);
+  std::vector<double> per_tile;
+  for (const int y0 : tile_origins(height, options.tile, options.stride)) {
+    for (const int x0 : tile_origins(width, options.tile, options.stride)) {
+      for (int f = 0; f < frames; ++f) {
+        const float* src = grey.data() + std::size_t(f) * plane;
+        double mean = 0;
+        for (int y = 0; y < th; ++y) {
+          for (int x = 0; x < tw; ++x)
+            mean += src[std::size_t(y0 + y) * width + std::size_t(x0 + x)];
+        }
+        mean /= double(tile_px);
+        float* dst = data.data() + std::size_t(f) * tile_px * 2;
+        for (int y = 0; y < th; ++y) {
+          for (int x = 0; x < tw; ++x) {
+            const std::size_t i = std::size_t(y) * tw + std::size_t(x);
+            const float v = src[std::size_t(y0 + y) * width + std::size_t(x0 + x)];
+            dst[2 * i] = (v - float(mean)) * wy[std::size_t(y)] * wx[std::size_t(x)];
+            dst[2 * i + 1] = 0.f;
+          }
+        }
+      }
+      sim::fft2_fftw(Shape{frames, th, tw}, std::span<float>(data.data(), data.size()), false);
+      std::vector<double> logs;
+      bool flat = false;
+      for (int f = 0; f < frames; ++f) {
+        const float* X = data.data() + std::size_t(f) * tile_px * 2;
+        double power = 0;
+        for (const std::size_t b : bins)
+          power += double(X[2 * b]) * X[2 * b] + double(X[2 * b + 1]) * X[2 * b + 1];
+        power /= double(bins.size());
+        // A tile with no texture in the band (below 1e-10 of a unit-contrast
+        // pattern's power per bin) says nothing: left out.
+        if (!(power > 1e-10 * double(tile_px) * double(tile_px))) flat = true;
+        logs.push_back(std::log(power));
+      }
+      if (flat) continue;
+      double mean = 0;
+      for (const double l : logs) mean += l;
+      mean /= double(frames);
+      double var = 0;
+      for (const double l : logs) var += (l - mean) * (l - mean);
+      per_tile.push_back(std::sqrt(var / double(frames)));
+    }
+  }
+  if (per_tile.empty()) {
+    throw InvalidArgument(op, "no tile of the frames has texture in the spectral band",
+                          "give a video of a textured scene");
+  }
+  m.tiles = int(per_tile.size());
+  std::sort(per_tile.begin(), per_tile.end());
+  const std::size_t n = per_tile.size();
+  m.fluctuation = n % 2 ? per_tile[n / 2] : 0.5 * (per_tile[n / 2 - 1] + per_tile[n / 2]);
+  return m;
+}
+
+double corrected_fluctuation(const SpectrumMeasure& spectrum, double rho) {
+  return spectrum.fluctuation / std::sqrt(correlated_variance_factor(spectrum.frames, rho));
 }
 
 void check_grey_video(std::span<const float> pixels, int frames, int height, int width,
@@ -276,6 +416,11 @@ double raw_d_over_r0(double variance_px2, int frames, const sim::Params& optics,
 
 TurbulenceCalibration TurbulenceCalibration::identity() { return {}; }
 
+std::string TurbulenceCalibration::cues() const {
+  if (uses_tilt() && uses_spectrum()) return "tilt+spectrum";
+  return uses_spectrum() ? "spectrum" : "tilt";
+}
+
 void TurbulenceCalibration::save(const std::filesystem::path& path) const {
   std::map<std::string, std::string> meta = metadata;
   meta["kind"] = kKind;
@@ -288,9 +433,16 @@ void TurbulenceCalibration::save(const std::filesystem::path& path) const {
   meta["tilt.passes"] = std::to_string(tilt.passes);
   meta["tilt.min_eigenvalue"] = num(tilt.min_eigenvalue);
   meta["tilt.border"] = std::to_string(tilt.border);
-  const std::vector<float> values{float(std::log(gain)), float(exponent)};
+  meta["cues"] = cues();
+  meta["blur_exponent"] = num(blur_exponent);
+  meta["blur_correlation"] = num(blur_correlation);
+  meta["spectrum.band_lo"] = num(spectrum.band_lo);
+  meta["spectrum.band_hi"] = num(spectrum.band_hi);
+  meta["spectrum.tile"] = std::to_string(spectrum.tile);
+  meta["spectrum.stride"] = std::to_string(spectrum.stride);
+  const std::vector<float> values{float(std::log(gain)), float(exponent), float(blur_exponent)};
   const std::vector<nets::SafetensorsRecord> records{
-      nets::SafetensorsRecord::f32("log_gain_exponent", {2}, values)};
+      nets::SafetensorsRecord::f32("log_gain_exponents", {3}, values)};
   nets::write_safetensors(path, records, meta);
 }
 
@@ -313,6 +465,26 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
   c.tilt.passes = int(parse_number(file.metadata, "tilt.passes", path));
   c.tilt.min_eigenvalue = float(parse_number(file.metadata, "tilt.min_eigenvalue", path));
   c.tilt.border = int(parse_number(file.metadata, "tilt.border", path));
+  // A calibration without the spectral keys is a tilt-only one.
+  if (file.metadata.contains("cues")) {
+    c.blur_exponent = parse_number(file.metadata, "blur_exponent", path);
+    c.blur_correlation = parse_number(file.metadata, "blur_correlation", path);
+    c.spectrum.band_lo = parse_number(file.metadata, "spectrum.band_lo", path);
+    c.spectrum.band_hi = parse_number(file.metadata, "spectrum.band_hi", path);
+    c.spectrum.tile = int(parse_number(file.metadata, "spectrum.tile", path));
+    c.spectrum.stride = int(parse_number(file.metadata, "spectrum.stride", path));
+    if (file.metadata.at("cues") != c.cues() ||
+        !(c.blur_correlation >= 0 && c.blur_correlation < 1)) {
+      throw Error("load turbulence calibration",
+                  path.string() + " names the cues '" + file.metadata.at("cues") +
+                      "' but holds exponents " + num(c.exponent) + " (tilt), " +
+                      num(c.blur_exponent) + " (spectrum) and blur_correlation " +
+                      num(c.blur_correlation),
+                  "make the file again with `vkjr2 estimate-train`");
+    }
+  } else {
+    c.blur_exponent = 0;
+  }
   const auto reg = file.metadata.find("registration");
   if (reg == file.metadata.end() || (reg->second != "dis" && reg->second != "lk")) {
     throw Error("load turbulence calibration",
@@ -328,13 +500,16 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
   }
   try {
     c.tilt.validate();
+    c.spectrum.validate();
   } catch (const InvalidArgument& e) {
     throw Error("load turbulence calibration", path.string() + ": " + e.problem(),
                 "make the file again with `vkjr2 estimate-train`");
   }
   for (const char* k :
        {"kind", "gain", "exponent", "tilt_correlation", "registration", "tilt.radius",
-        "tilt.iterations", "tilt.passes", "tilt.min_eigenvalue", "tilt.border"}) {
+        "tilt.iterations", "tilt.passes", "tilt.min_eigenvalue", "tilt.border", "cues",
+        "blur_exponent", "blur_correlation", "spectrum.band_lo", "spectrum.band_hi",
+        "spectrum.tile", "spectrum.stride"}) {
     c.metadata.erase(k);
   }
   return c;
@@ -349,55 +524,124 @@ TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
                               "' registration, this measures with 'lk'",
                           "use a calibration fitted with --registration lk");
   }
-  return estimate_turbulence(measure_tilt(stream, frames, calibration.tilt), optics, calibration);
+  TiltMeasure tilt;
+  if (calibration.uses_tilt()) tilt = measure_tilt(stream, frames, calibration.tilt);
+  SpectrumMeasure spectrum;
+  if (calibration.uses_spectrum()) {
+    const Shape& s = frames.shape();
+    spectrum = spectral_fluctuation(frames.download(), int(s[0]), int(s[2]), int(s[3]), optics,
+                                    calibration.spectrum);
+  }
+  return estimate_turbulence(tilt, spectrum, optics, calibration);
+}
+
+TurbulenceEstimate estimate_turbulence(const TiltMeasure& tilt, const SpectrumMeasure& spectrum,
+                                       const sim::Params& optics,
+                                       const TurbulenceCalibration& calibration) {
+  const char* op = "turbulence estimate";
+  TurbulenceEstimate e;
+  e.tilt = tilt;
+  e.spectrum = spectrum;
+  double d = calibration.gain;
+  if (calibration.uses_tilt() || tilt.frames > 0) {
+    if (tilt.frames < 2) {
+      throw InvalidArgument(op, "the calibration uses the tilt, which was not measured",
+                            "measure the tilt of the video");
+    }
+    e.raw_d_over_r0 =
+        raw_d_over_r0(e.tilt.variance_px2, e.tilt.frames, optics, calibration.tilt_correlation);
+    d *= std::pow(e.raw_d_over_r0, calibration.exponent);
+  }
+  if (calibration.uses_spectrum() || spectrum.frames > 0) {
+    if (spectrum.frames < 2) {
+      throw InvalidArgument(op, "the calibration uses the spectral cue, which was not measured",
+                            "measure it with spectral_fluctuation");
+    }
+    e.blur = corrected_fluctuation(spectrum, calibration.blur_correlation);
+    d *= std::pow(e.blur, calibration.blur_exponent);
+  }
+  e.d_over_r0 = d;
+  e.r0_m = optics.optics.aperture_m / e.d_over_r0;
+  return e;
 }
 
 TurbulenceEstimate estimate_turbulence(const TiltMeasure& tilt, const sim::Params& optics,
                                        const TurbulenceCalibration& calibration) {
-  TurbulenceEstimate e;
-  e.tilt = tilt;
-  e.raw_d_over_r0 =
-      raw_d_over_r0(e.tilt.variance_px2, e.tilt.frames, optics, calibration.tilt_correlation);
-  e.d_over_r0 = calibration.gain * std::pow(e.raw_d_over_r0, calibration.exponent);
-  e.r0_m = optics.optics.aperture_m / e.d_over_r0;
-  return e;
+  return estimate_turbulence(tilt, SpectrumMeasure{}, optics, calibration);
 }
 
 TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<const double> truth,
                                       const TiltOptions& tilt, double tilt_correlation,
                                       const std::string& registration) {
+  TurbulenceCalibration base;
+  base.tilt = tilt;
+  base.tilt_correlation = tilt_correlation;
+  base.registration = registration;
+  return fit_calibration(base, raw, {}, truth);
+}
+
+TurbulenceCalibration fit_calibration(const TurbulenceCalibration& base,
+                                      std::span<const double> raw, std::span<const double> blur,
+                                      std::span<const double> truth) {
   const char* op = "fit turbulence calibration";
-  if (raw.size() != truth.size() || raw.size() < 3) {
+  const bool t = base.uses_tilt(), b = base.uses_spectrum();
+  if (!t && !b) throw InvalidArgument(op, "no cue to fit", "use the tilt, the spectrum or both");
+  const std::size_t n = truth.size(), k = 1 + (t ? 1 : 0) + (b ? 1 : 0);
+  if ((t && raw.size() != n) || (b && blur.size() != n) || n < k + 1) {
     throw InvalidArgument(op,
-                          std::to_string(raw.size()) + " measurements for " +
-                              std::to_string(truth.size()) + " true values",
-                          "give at least 3 videos of known D/r0");
+                          std::to_string(n) + " true values for " + std::to_string(raw.size()) +
+                              " tilt and " + std::to_string(blur.size()) + " spectral measures",
+                          "give at least " + std::to_string(k + 1) + " videos of known D/r0");
   }
-  double sx = 0, sy = 0, sxx = 0, sxy = 0;
-  const double n = double(raw.size());
-  for (std::size_t i = 0; i < raw.size(); ++i) {
-    if (!(raw[i] > 0) || !(truth[i] > 0)) {
-      throw InvalidArgument(
-          op,
-          "video " + std::to_string(i) + ": raw " + num(raw[i]) + ", true D/r0 " + num(truth[i]),
-          "every value must be positive");
+  // Normal equations of log D/r0 = c0 + c1 · log raw + c2 · log blur.
+  std::array<std::array<double, 4>, 3> a{};  // [k × k | rhs]
+  for (std::size_t i = 0; i < n; ++i) {
+    std::array<double, 3> x{1.0, 0, 0};
+    std::size_t j = 1;
+    const auto positive = [&](double v, const char* what) {
+      if (!(v > 0) || !std::isfinite(v)) {
+        throw InvalidArgument(op, "video " + std::to_string(i) + ": " + what + " " + num(v),
+                              "every value must be positive");
+      }
+      return std::log(v);
+    };
+    if (t) x[j++] = positive(raw[i], "raw D/r0");
+    if (b) x[j++] = positive(blur[i], "spectral fluctuation");
+    const double y = positive(truth[i], "true D/r0");
+    for (std::size_t r = 0; r < k; ++r) {
+      for (std::size_t c = 0; c < k; ++c) a[r][c] += x[r] * x[c];
+      a[r][3] += x[r] * y;
     }
-    const double x = std::log(raw[i]), y = std::log(truth[i]);
-    sx += x;
-    sy += y;
-    sxx += x * x;
-    sxy += x * y;
   }
-  const double var = sxx - sx * sx / n;
-  if (!(var > 1e-12 * n)) {
-    throw InvalidArgument(op, "the raw values do not vary", "calibrate on a range of strengths");
+  // Gauss–Jordan with partial pivoting; a pivot below 1e-9 of the diagonal's
+  // scale means the cues do not vary (independently).
+  double scale = 0;
+  for (std::size_t r = 0; r < k; ++r) scale = std::max(scale, std::abs(a[r][r]));
+  for (std::size_t c = 0; c < k; ++c) {
+    std::size_t p = c;
+    for (std::size_t r = c + 1; r < k; ++r) {
+      if (std::abs(a[r][c]) > std::abs(a[p][c])) p = r;
+    }
+    if (!(std::abs(a[p][c]) > 1e-9 * scale)) {
+      throw InvalidArgument(op, "the measured cues do not vary (independently) over the videos",
+                            "calibrate on a range of strengths");
+    }
+    std::swap(a[c], a[p]);
+    for (std::size_t r = 0; r < k; ++r) {
+      if (r == c) continue;
+      const double f = a[r][c] / a[c][c];
+      for (std::size_t q = c; q < k; ++q) a[r][q] -= f * a[c][q];
+      a[r][3] -= f * a[c][3];
+    }
   }
-  TurbulenceCalibration c;
-  c.exponent = (sxy - sx * sy / n) / var;
-  c.gain = std::exp((sy - c.exponent * sx) / n);
-  c.tilt = tilt;
-  c.tilt_correlation = tilt_correlation;
-  c.registration = registration;
+  TurbulenceCalibration c = base;
+  c.metadata.clear();
+  std::size_t j = 0;
+  c.gain = std::exp(a[j][3] / a[j][j]);
+  ++j;
+  c.exponent = t ? a[j][3] / a[j][j] : 0.0;
+  if (t) ++j;
+  c.blur_exponent = b ? a[j][3] / a[j][j] : 0.0;
   return c;
 }
 

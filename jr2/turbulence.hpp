@@ -1,5 +1,5 @@
 // Turbulence strength from the footage alone (docs/jr2.md §7): D/r0 of a
-// video from its frame-to-frame tilt.
+// video from its frame-to-frame tilt and the fluctuation of its blur.
 //
 // The frames are registered against their mean by dense optical flow
 // (OpenCV's DIS in the command runner; here, measure_tilt: the Lucas–Kanade
@@ -13,8 +13,9 @@
 // the factor 1 − (1/T)(1 + 2 Σ_k (1 − k/T) ρ^k) for an AR(1) tilt of
 // frame-to-frame correlation ρ; the raw value is corrected by it. A
 // calibration fitted on simulated videos of known D/r0,
-// D/r0 = gain · raw^exponent, takes out what the registration still biases
-// (blur, noise, compression, the window's averaging).
+// D/r0 = gain · raw^exponent (· blur^blur_exponent with the spectral cue
+// below), takes out what the registration still biases (blur, noise,
+// compression, the window's averaging).
 #pragma once
 
 #include <vkjr2/runtime/stream.hpp>
@@ -82,10 +83,46 @@ TiltMeasure measure_tilt(Stream& stream, const Tensor& frames, const TiltOptions
 // AR(1) series of correlation rho falls short of its variance.
 double correlated_variance_factor(int frames, double rho);
 
+// The blur cue: how much the short-exposure spectrum fluctuates from frame to
+// frame. In each square tile (Hann-windowed, its mean removed) the power in a
+// band of spatial frequencies, fixed in units of the optics' cutoff D/λ, is
+// taken per frame; the standard deviation over the frames of its log is the
+// tile's fluctuation, the median over the tiles the video's. The scene's
+// spectrum cancels in the log differences between frames of the same scene,
+// so the cue does not depend on how sharp the scene is; a moving object
+// changes a minority of the tiles.
+struct SpectrumOptions {
+  double band_lo = 0.10, band_hi = 0.17;  // the band, fractions of the cutoff D/λ
+  int tile = 64, stride = 32;             // tile side and step, px (a smaller frame: one tile)
+  // Throws InvalidArgument naming the option and the fix.
+  void validate() const;
+};
+
+struct SpectrumMeasure {
+  int frames = 0, tiles = 0;
+  double band_lo_px = 0, band_hi_px = 0;  // the band in cycles per pixel
+  double fluctuation = 0;  // median over the tiles of the sd over frames of log band power
+};
+
+// The spectral fluctuation of T grey frames (T×H×W, 0..1) under `optics`
+// (pixel scale and first wavelength; its turbulence is not used). Throws
+// InvalidArgument for fewer than 2 frames, a non-finite pixel, a band that
+// holds fewer than 8 frequency bins of a tile, or frames without texture in
+// the band.
+SpectrumMeasure spectral_fluctuation(std::span<const float> grey, int frames, int height, int width,
+                                     const sim::Params& optics,
+                                     const SpectrumOptions& options = {});
+
 struct TurbulenceCalibration {
-  double gain = 1.0, exponent = 1.0;  // D/r0 = gain · raw^exponent
-  double tilt_correlation = 0.9;      // ρ the raw value is corrected with
+  // D/r0 = gain · raw^exponent · blur^blur_exponent, where raw is the tilt's
+  // D/r0 and blur the spectral fluctuation corrected to independent frames;
+  // a cue the calibration does not use has exponent 0 and is not measured.
+  double gain = 1.0, exponent = 1.0;
+  double blur_exponent = 0.0;
+  double tilt_correlation = 0.9;  // ρ the raw value is corrected with
+  double blur_correlation = 0.6;  // ρ the fluctuation is corrected with
   TiltOptions tilt;
+  SpectrumOptions spectrum;
   // The registration the fit was measured with: "dis" (OpenCV's DIS optical
   // flow, vkjr2 estimate's) or "lk" (measure_tilt). An estimate uses the same.
   std::string registration = "dis";
@@ -93,14 +130,20 @@ struct TurbulenceCalibration {
 
   // The identity calibration (raw values, ρ = 0.9).
   static TurbulenceCalibration identity();
+  bool uses_tilt() const noexcept { return exponent != 0.0; }
+  bool uses_spectrum() const noexcept { return blur_exponent != 0.0; }
+  // "tilt", "spectrum" or "tilt+spectrum".
+  std::string cues() const;
   // Atomic write; the reader checks every key and names the file.
   void save(const std::filesystem::path& path) const;
   static TurbulenceCalibration load(const std::filesystem::path& path);
 };
 
 struct TurbulenceEstimate {
-  TiltMeasure tilt;
+  TiltMeasure tilt;          // frames = 0 when the calibration does not use the tilt
+  SpectrumMeasure spectrum;  // frames = 0 when the calibration does not use it
   double raw_d_over_r0 = 0;  // from the corrected tilt variance by the Z-tilt formula
+  double blur = 0;           // the fluctuation corrected to independent frames
   double d_over_r0 = 0;      // calibrated, at the optics' first wavelength
   double r0_m = 0;           // D / (D/r0)
 };
@@ -110,10 +153,20 @@ struct TurbulenceEstimate {
 // `optics` are not used) and the correlation correction.
 double raw_d_over_r0(double variance_px2, int frames, const sim::Params& optics, double rho);
 
-// The calibrated estimate from a measured tilt.
+// The spectral fluctuation corrected for the frames' correlation ρ: divided by
+// √(correlated_variance_factor(frames, ρ)).
+double corrected_fluctuation(const SpectrumMeasure& spectrum, double rho);
+
+// The calibrated estimate from the measured cues (each may be default, frames
+// 0, when the calibration does not use it; one it uses must be measured).
+TurbulenceEstimate estimate_turbulence(const TiltMeasure& tilt, const SpectrumMeasure& spectrum,
+                                       const sim::Params& optics,
+                                       const TurbulenceCalibration& calibration);
+// The tilt-only form (a calibration that uses the spectrum throws).
 TurbulenceEstimate estimate_turbulence(const TiltMeasure& tilt, const sim::Params& optics,
                                        const TurbulenceCalibration& calibration);
-// The same, measured by measure_tilt (calibration.registration must be "lk").
+// The same, measured on the device frames [T, 1, H, W] by measure_tilt
+// (calibration.registration must be "lk") and spectral_fluctuation.
 TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
                                        const sim::Params& optics,
                                        const TurbulenceCalibration& calibration);
@@ -124,6 +177,16 @@ TurbulenceEstimate estimate_turbulence(Stream& stream, const Tensor& frames,
 TurbulenceCalibration fit_calibration(std::span<const double> raw, std::span<const double> truth,
                                       const TiltOptions& tilt, double tilt_correlation,
                                       const std::string& registration);
+
+// The fit of `base`'s cues (its exponents' zero pattern: a non-zero exponent
+// is fitted, a zero one stays 0) in logs over the videos: raw[i] the tilt's
+// raw D/r0, blur[i] the corrected fluctuation (either may be empty when its
+// cue is not used), truth[i] the true D/r0. The options and correlations are
+// base's. Throws InvalidArgument for fewer videos than 1 + the fitted terms, a
+// non-positive value, or cues that do not vary independently.
+TurbulenceCalibration fit_calibration(const TurbulenceCalibration& base,
+                                      std::span<const double> raw, std::span<const double> blur,
+                                      std::span<const double> truth);
 
 // Frames as the estimator reads them: the mean of the channels of
 // [T, C, H, W] host pixels in 0..range → [T, 1, H, W] 0..1.

@@ -35,7 +35,21 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
   json j = parse_json(r.output);
   EXPECT_EQ(j["videos"], 6);  // 3 identities × 2 strengths of the val split
   EXPECT_GT(j["gain"].get<double>(), 0.0);
+  EXPECT_EQ(j["cues"], "tilt+spectrum");
+  EXPECT_NE(j["blur_exponent"].get<double>(), 0.0);
   EXPECT_TRUE(fs::exists(cal));
+  // The tilt alone; a band that is not one is a usage error before any work.
+  const fs::path cal_tilt = tmp.path / "cal_tilt.safetensors";
+  r = run_cli("estimate-train " + cal_tilt.string() + " --benchmark " + manifest +
+              " --cues tilt --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["cues"], "tilt");
+  EXPECT_EQ(parse_json(r.output)["blur_exponent"].get<double>(), 0.0);
+  r = run_cli("estimate-train " + (tmp.path / "bad.safetensors").string() + " --benchmark " +
+              manifest + " --band 0.3 0.2");
+  EXPECT_EQ(r.code, 2) << r.output;
+  EXPECT_NE(r.output.find("spectral band"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(tmp.path / "bad.safetensors"));
   // Refused over an existing file without --force, before any work.
   r = run_cli("estimate-train " + cal.string() + " --benchmark " + manifest);
   EXPECT_EQ(r.code, 2) << r.output;
@@ -51,7 +65,10 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
     EXPECT_NEAR(v["r0_m"].get<double>() * v["d_over_r0"].get<double>(), 0.2, 1e-9) << v.dump();
     EXPECT_GT(v["true_d_over_r0"].get<double>(), 0.0) << v.dump();
     EXPECT_EQ(v["frames"], 10);
+    EXPECT_GT(v["spectral_fluctuation"].get<double>(), 0.0) << v.dump();
+    EXPECT_EQ(v["spectral_tiles"], 4) << v.dump();  // 64² tiles of a 96² frame
   }
+  EXPECT_EQ(j["cues"], "tilt+spectrum");
   // weak, strong and all, each with its error statistics.
   ASSERT_EQ(j["errors"].size(), 3u) << j.dump();
   EXPECT_EQ(j["errors"][2]["group"], "all");

@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 #include <vector>
@@ -300,6 +301,214 @@ TEST(Jr2Turbulence, BadVideosAreClearErrors) {
   TiltOptions bad;
   bad.radius = 0;
   test::expect_invalid_argument([&] { bad.validate(); }, "radius 0");
+}
+
+// The spectral fluctuation computed directly: per tile, a plain DFT of the
+// Hann-windowed, mean-removed tile, the mean power over the band's bins, the
+// sd over frames of its log; the median over the tiles.
+double reference_fluctuation(const std::vector<float>& grey, int t, int h, int w, double lo,
+                             double hi, int tile, int stride) {
+  const auto origins = [&](int size) {
+    std::vector<int> o;
+    if (size < tile) return std::vector<int>{0};
+    for (int x = 0; x + tile <= size; x += stride) o.push_back(x);
+    return o;
+  };
+  const int th = std::min(h, tile), tw = std::min(w, tile);
+  const auto hann = [](int n, int i) { return 0.5 - 0.5 * std::cos(2 * M_PI * i / (n - 1)); };
+  std::vector<double> per_tile;
+  for (int y0 : origins(h)) {
+    for (int x0 : origins(w)) {
+      std::vector<double> logs;
+      for (int f = 0; f < t; ++f) {
+        const float* im = grey.data() + std::size_t(f) * h * w;
+        double mean = 0;
+        for (int y = 0; y < th; ++y) {
+          for (int x = 0; x < tw; ++x) mean += im[(y0 + y) * w + x0 + x];
+        }
+        mean /= th * tw;
+        double power = 0;
+        int bins = 0;
+        for (int u = 0; u < th; ++u) {
+          for (int v = 0; v < tw; ++v) {
+            const double fy = (u <= (th - 1) / 2 ? u : u - th) / double(th);
+            const double fx = (v <= (tw - 1) / 2 ? v : v - tw) / double(tw);
+            const double r = std::hypot(fx, fy);
+            if (r < lo || r >= hi) continue;
+            double re = 0, imag = 0;
+            for (int y = 0; y < th; ++y) {
+              for (int x = 0; x < tw; ++x) {
+                const double val = (im[(y0 + y) * w + x0 + x] - mean) * hann(th, y) * hann(tw, x);
+                const double a = -2 * M_PI * (double(u) * y / th + double(v) * x / tw);
+                re += val * std::cos(a);
+                imag += val * std::sin(a);
+              }
+            }
+            power += re * re + imag * imag;
+            ++bins;
+          }
+        }
+        logs.push_back(std::log(power / bins));
+      }
+      double m = 0, v = 0;
+      for (double l : logs) m += l / t;
+      for (double l : logs) v += (l - m) * (l - m) / t;
+      per_tile.push_back(std::sqrt(v));
+    }
+  }
+  std::sort(per_tile.begin(), per_tile.end());
+  const std::size_t n = per_tile.size();
+  return n % 2 ? per_tile[n / 2] : 0.5 * (per_tile[n / 2 - 1] + per_tile[n / 2]);
+}
+
+// Random frames of random shapes against the direct computation; the
+// statistic's invariances: a static video does not fluctuate, and a
+// brightness offset or a contrast gain of the whole video changes nothing.
+TEST(Jr2Turbulence, SpectralFluctuationMatchesItsReference) {
+  std::mt19937 rng(5);
+  const sim::Params optics = probe_sim_params(2.0, 64);
+  for (int trial = 0; trial < 3; ++trial) {
+    const int t = 3 + int(rng() % 4), h = 18 + int(rng() % 20), w = 18 + int(rng() % 20);
+    SpectrumOptions o;
+    o.tile = 16 + int(rng() % 8);
+    o.stride = 4 + int(rng() % 9);
+    o.band_lo = 0.15;
+    o.band_hi = 0.45;
+    std::uniform_real_distribution<float> u(0.f, 1.f);
+    std::vector<float> grey(std::size_t(t) * h * w);
+    for (float& v : grey) v = u(rng);
+    const SpectrumMeasure m = spectral_fluctuation(grey, t, h, w, optics, o);
+    const double lo = m.band_lo_px, hi = m.band_hi_px;
+    EXPECT_NEAR(lo, 0.15 * 0.2 * 3.45e-6 / (1.6 * 525e-9), 1e-9);
+    EXPECT_NEAR(m.fluctuation, reference_fluctuation(grey, t, h, w, lo, hi, o.tile, o.stride), 1e-4)
+        << t << "×" << h << "×" << w << " tile " << o.tile << " stride " << o.stride;
+    EXPECT_EQ(m.frames, t);
+    EXPECT_GT(m.tiles, 0);
+    std::vector<float> brighter = grey;
+    for (float& v : brighter) v = 0.1f + 0.5f * v;
+    EXPECT_NEAR(spectral_fluctuation(brighter, t, h, w, optics, o).fluctuation, m.fluctuation,
+                1e-4);
+    std::vector<float> still(grey.begin(), grey.begin() + std::ptrdiff_t(h) * w);
+    for (int f = 1; f < t; ++f) still.insert(still.end(), grey.begin(), grey.begin() + h * w);
+    EXPECT_NEAR(spectral_fluctuation(still, t, h, w, optics, o).fluctuation, 0.0, 1e-5);
+  }
+}
+
+// Through the simulator, the blur fluctuates more at a higher D/r0; bad
+// input is a clear error.
+TEST(Jr2Turbulence, SpectralFluctuationGrowsWithTheTurbulence) {
+  Device& dev = test::device();
+  const int t = 12, size = 96;
+  const auto scene = texture(size, size);
+  std::vector<float> rgb;
+  for (int c = 0; c < 3; ++c) rgb.insert(rgb.end(), scene.begin(), scene.end());
+  const Tensor x = Tensor::from(dev, {1, 3, size, size}, rgb);
+  const auto blur = sim::load_shipped_blur_models(dev);
+  double previous = 0;
+  for (double d_over_r0 : {1.5, 6.0}) {
+    const sim::Params p = probe_sim_params(d_over_r0, size);
+    const SimulatedVideo video = simulate_video(dev, x, p, probe_sim_options(), blur, 3, t);
+    const SpectrumMeasure m = spectral_fluctuation(video.grey, t, size, size, p);
+    EXPECT_EQ(m.tiles, 4);  // 64² tiles at 32 px steps
+    EXPECT_GT(m.fluctuation, 1.5 * previous) << "D/r0 " << d_over_r0;
+    previous = m.fluctuation;
+  }
+  const sim::Params optics = probe_sim_params(2.0, size);
+  test::expect_invalid_argument([&] { (void)spectral_fluctuation(scene, 1, size, size, optics); },
+                                "1 frame");
+  std::vector<float> two = scene;
+  two.insert(two.end(), scene.begin(), scene.end());
+  two[size * size + 5] = std::nanf("");
+  test::expect_invalid_argument([&] { (void)spectral_fluctuation(two, 2, size, size, optics); },
+                                "frame 1 holds a non-finite pixel");
+  test::expect_invalid_argument(
+      [&] { (void)spectral_fluctuation(std::vector<float>(2 * 10 * 10, 0.5f), 2, 10, 10, optics); },
+      "frequency bins");
+  test::expect_invalid_argument(
+      [&] { (void)spectral_fluctuation(std::vector<float>(2 * 64 * 64, 0.5f), 2, 64, 64, optics); },
+      "no tile");
+  SpectrumOptions bad;
+  bad.band_hi = 0.05;
+  test::expect_invalid_argument([&] { bad.validate(); }, "spectral band");
+  bad = {};
+  bad.stride = 100;
+  test::expect_invalid_argument([&] { bad.validate(); }, "stride 100");
+}
+
+// Both cues: the fit recovers a known law, the estimate applies it, and the
+// file keeps the cues and their options; a file whose cues and exponents
+// disagree is refused.
+TEST(Jr2Turbulence, TwoCueCalibrationFitsAndRoundTrips) {
+  std::vector<double> raw, blur, truth;
+  for (double r : {0.5, 1.0, 2.0, 4.0, 7.0}) {
+    for (double b : {0.05, 0.2}) {
+      raw.push_back(r);
+      blur.push_back(b * (1 + 0.1 * r));
+      truth.push_back(2.0 * std::pow(raw.back(), 0.3) * std::pow(blur.back(), 0.7));
+    }
+  }
+  TurbulenceCalibration base;
+  base.exponent = 1;
+  base.blur_exponent = 1;
+  base.spectrum.tile = 48;
+  base.blur_correlation = 0.5;
+  const TurbulenceCalibration c = fit_calibration(base, raw, blur, truth);
+  EXPECT_NEAR(c.gain, 2.0, 1e-9);
+  EXPECT_NEAR(c.exponent, 0.3, 1e-9);
+  EXPECT_NEAR(c.blur_exponent, 0.7, 1e-9);
+  EXPECT_EQ(c.cues(), "tilt+spectrum");
+  base.exponent = 0;  // the spectrum alone
+  const TurbulenceCalibration s = fit_calibration(base, {}, blur, truth);
+  EXPECT_EQ(s.cues(), "spectrum");
+  EXPECT_EQ(s.exponent, 0.0);
+  test::expect_invalid_argument([&] { (void)fit_calibration(base, {}, {}, truth); }, "spectral");
+
+  // The estimate: the corrected fluctuation, with the law's exponents.
+  const sim::Params optics = probe_sim_params(3.0, 64);
+  TiltMeasure tilt;
+  tilt.frames = 30;
+  tilt.variance_px2 = 0.5;
+  SpectrumMeasure spectrum;
+  spectrum.frames = 30;
+  spectrum.fluctuation = 0.1;
+  const TurbulenceEstimate e = estimate_turbulence(tilt, spectrum, optics, c);
+  EXPECT_NEAR(e.blur, 0.1 / std::sqrt(correlated_variance_factor(30, 0.5)), 1e-12);
+  EXPECT_NEAR(e.d_over_r0, 2.0 * std::pow(e.raw_d_over_r0, 0.3) * std::pow(e.blur, 0.7), 1e-9);
+  test::expect_invalid_argument([&] { (void)estimate_turbulence(tilt, optics, c); },
+                                "spectral cue");
+
+  test::TempDir dir;
+  const auto path = dir.path / "two.safetensors";
+  c.save(path);
+  const TurbulenceCalibration back = TurbulenceCalibration::load(path);
+  EXPECT_DOUBLE_EQ(back.blur_exponent, c.blur_exponent);
+  EXPECT_DOUBLE_EQ(back.blur_correlation, 0.5);
+  EXPECT_EQ(back.spectrum.tile, 48);
+  EXPECT_EQ(back.cues(), "tilt+spectrum");
+  // A tilt-only file of the earlier layout (no spectral keys) is a tilt-only
+  // calibration; one whose cues contradict its exponents is refused.
+  {
+    auto file = nets::read_safetensors(path);
+    for (const char* k : {"cues", "blur_exponent", "blur_correlation", "spectrum.band_lo",
+                          "spectrum.band_hi", "spectrum.tile", "spectrum.stride"}) {
+      file.metadata.erase(k);
+    }
+    nets::write_safetensors(path, file.tensors, file.metadata);
+  }
+  EXPECT_EQ(TurbulenceCalibration::load(path).cues(), "tilt");
+  c.save(path);
+  {
+    auto file = nets::read_safetensors(path);
+    file.metadata["cues"] = "tilt";
+    nets::write_safetensors(path, file.tensors, file.metadata);
+  }
+  try {
+    (void)TurbulenceCalibration::load(path);
+    ADD_FAILURE() << "a calibration whose cues contradict its exponents was read";
+  } catch (const Error& err) {
+    EXPECT_NE(std::string(err.what()).find("names the cues 'tilt'"), std::string::npos)
+        << err.what();
+  }
 }
 
 }  // namespace
