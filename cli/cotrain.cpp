@@ -213,10 +213,14 @@ void run_cotrain(CoTrainArgs& a) {
     trainer.prepare([&](int done, int) { fill.update(std::size_t(done)); });
   }
   if (const auto& faceless = trainer.faceless_clips(); !faceless.empty()) {
+    const std::vector<std::string> lost = trainer.faceless_identities();
     log_warn("cotrain: " + std::to_string(faceless.size()) + " of " + std::to_string(n_faces) +
              " unpaired clips left out: the detector finds no face in them (first: " +
-             faceless.front() + ")");
-    write_log({{"faceless_clips", faceless}});
+             faceless.front() + ")" +
+             (lost.empty() ? std::string()
+                           : "; " + std::to_string(lost.size()) +
+                                 " identities left without a clip are not trained on"));
+    write_log({{"faceless_clips", faceless}, {"faceless_identities", lost}});
   }
   Progress bar("cotrain", std::size_t(o.steps), run.quiet);
   bar.update(std::size_t(trainer.step()));
@@ -287,6 +291,7 @@ void run_cotrain(CoTrainArgs& a) {
                               {"steps", trainer.step()},
                               {"training_clips", n_faces},
                               {"faceless_clips", trainer.faceless_clips().size()},
+                              {"faceless_identities", trainer.faceless_identities().size()},
                               {"identities", trainer.identities().size()},
                               {"trainable_parameters", trainer.trainable_parameters()},
                               {"student", row_json(last.student)},

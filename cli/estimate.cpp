@@ -218,11 +218,13 @@ json result_json(const Measured& m) {
   if (!m.item.group.empty()) j["group"] = m.item.group;
   j["d_over_r0"] = m.estimate.d_over_r0;
   j["r0_m"] = m.estimate.r0_m;
-  j["raw_d_over_r0"] = m.estimate.raw_d_over_r0;
-  j["tilt_variance_px2"] = m.estimate.tilt.variance_px2;
-  j["tilt_lag1_covariance_px2"] = m.estimate.tilt.lag1_covariance_px2;
-  j["tilt_mean_variance_px2"] = m.estimate.tilt.mean_variance_px2;
-  j["coverage"] = m.estimate.tilt.coverage;
+  if (m.estimate.tilt.frames > 0) {
+    j["raw_d_over_r0"] = m.estimate.raw_d_over_r0;
+    j["tilt_variance_px2"] = m.estimate.tilt.variance_px2;
+    j["tilt_lag1_covariance_px2"] = m.estimate.tilt.lag1_covariance_px2;
+    j["tilt_mean_variance_px2"] = m.estimate.tilt.mean_variance_px2;
+    j["coverage"] = m.estimate.tilt.coverage;
+  }
   if (m.estimate.spectrum.frames > 0) {
     j["spectral_fluctuation"] = m.estimate.spectrum.fluctuation;
     j["blur"] = m.estimate.blur;
@@ -320,7 +322,7 @@ void run_estimate(const EstimateArgs& a) {
 
 struct TrainArgs {
   Common c;
-  std::string output, registration = "dis", cues = "tilt+spectrum";
+  std::string output, registration = "dis", cues = "spectrum";
   jr2::TiltOptions tilt;
   jr2::SpectrumOptions spectrum;
   std::vector<double> band{spectrum.band_lo, spectrum.band_hi};
@@ -348,6 +350,11 @@ void run_train(TrainArgs& a) {
     a.spectrum.validate();
   } catch (const InvalidArgument& e) {
     throw UsageError("--band/--tile/--stride", e.problem(), e.fix());
+  }
+  if (a.cues == "spectrum" && a.registration != "dis") {
+    throw UsageError("--registration", "--registration " + a.registration +
+                                           " with --cues spectrum, which registers nothing",
+                     "add --cues tilt or --cues tilt+spectrum");
   }
   check_output_file(a.output, a.force, "OUT");
   check_extension(a.output, {".safetensors"}, "OUT");

@@ -144,9 +144,15 @@ jr2::GateSample sample_from_json(const ojson& j) {
 }
 
 // What a cached set of labels was made from: reused only when all agree.
-ojson cache_key(const LabelSet& set, const GateArgs& a, const fs::path& restorer) {
+ojson cache_key(const LabelSet& set, const GateArgs& a, const fs::path& restorer,
+                const jr2::TurbulenceCalibration& turbulence) {
   std::error_code ec;
   return {{"version", kSamplesVersion},
+          {"turbulence",
+           {{"cues", turbulence.cues()},
+            {"gain", turbulence.gain},
+            {"exponent", turbulence.exponent},
+            {"blur_exponent", turbulence.blur_exponent}}},
           {"manifest", fs::absolute(set.manifest_path).string()},
           {"manifest_bytes", fs::file_size(set.manifest_path, ec)},
           {"splits", set.splits},
@@ -213,7 +219,7 @@ std::vector<jr2::GateSample> label(ProbeContext& ctx, const Method& degraded,
 std::vector<jr2::GateSample> labels_of(ProbeContext& ctx, const Method& degraded,
                                        const Method& restored, const LabelSet& set,
                                        const GateArgs& a, const fs::path& restorer, ojson& cache) {
-  const ojson key = cache_key(set, a, restorer);
+  const ojson key = cache_key(set, a, restorer, ctx.gate->calibration);
   if (cache.contains(set.role) && cache[set.role].value("key", ojson()) == key) {
     std::vector<jr2::GateSample> out;
     try {

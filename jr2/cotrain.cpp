@@ -186,6 +186,7 @@ struct CoTrainer::Impl {
   std::vector<float> centres;  // [classes, 128] clean centres (the fixed yardstick)
   bool prepared = false;
   std::vector<std::string> dropped;  // unpaired training clips without a detected face
+  std::set<std::string> dropped_identities;  // identities that kept no clip (nor held-out face)
   // The pool: clip k in slot k % pool.
   Tensor pool_frames;
   std::vector<nets::FaceBox> pool_box;
@@ -218,24 +219,8 @@ struct CoTrainer::Impl {
             "--window " + std::to_string(o.window) + " for a restorer of " +
                 std::to_string(net.levels()) + " levels",
             "use a multiple of " + std::to_string(1 << net.levels()));
-    // Identities in first-seen order; every val face's identity must train.
-    std::map<std::string, int> index;
-    for (const CoTrainFace& face : faces) {
-      auto [it, fresh] = index.emplace(face.identity, int(identities.size()));
-      if (fresh) identities.push_back(face.identity);
-      labels.push_back(it->second);
-    }
-    require(identities.size() >= 2, std::to_string(identities.size()) + " training identities",
-            "pass faces of at least 2 identities");
-    for (const CoTrainFace& face : val) {
-      const auto it = index.find(face.identity);
-      require(it != index.end(),
-              "held-out face " + face.source + " of identity '" + face.identity +
-                  "' that no training face has",
-              "hold out other realizations of the training identities");
-      val_labels.push_back(it->second);
-    }
-    require(!val.empty(), "no held-out faces", "pass at least one");
+    require(!faces.empty() && !val.empty(), "no training or no held-out faces",
+            "pass at least one of each");
     paired = faces.front().paired();
     val_paired = val.front().paired();
     size = paired ? faces.front().clean.shape[0] : faces.front().frames.front().shape[0];
@@ -263,6 +248,32 @@ struct CoTrainer::Impl {
         }
       }
     }
+    // Unpaired clips in which the detector finds no face are left out (with
+    // an identity that keeps none, and its held-out faces).
+    if (!paired) keep_faces_with_a_face();
+    // Identities in first-seen order; every val face's identity must train.
+    std::map<std::string, int> index;
+    for (const CoTrainFace& face : faces) {
+      auto [it, fresh] = index.emplace(face.identity, int(identities.size()));
+      if (fresh) identities.push_back(face.identity);
+      labels.push_back(it->second);
+    }
+    require(identities.size() >= 2,
+            std::to_string(identities.size()) + " training identities" +
+                (dropped.empty() ? std::string()
+                                 : " (" + std::to_string(dropped.size()) +
+                                       " clips without a detectable face left out)"),
+            dropped.empty() ? "pass faces of at least 2 identities"
+                            : "use more clips per identity or a weaker turbulence range");
+    for (const CoTrainFace& face : val) {
+      const auto it = index.find(face.identity);
+      require(it != index.end(),
+              "held-out face " + face.source + " of identity '" + face.identity +
+                  "' that no training face has",
+              "hold out other realizations of the training identities");
+      val_labels.push_back(it->second);
+    }
+    require(!val.empty(), "no held-out faces", "pass at least one");
     require(size >= o.window, "clips of " + std::to_string(size) + "² pixels",
             "use a --window of at most the clip side");
     win = o.order == CoTrainOrder::restore_first ? o.window : kCrop;
@@ -314,21 +325,31 @@ struct CoTrainer::Impl {
   }
 
   // The face box of a clip: the strongest detection in the clean clip (or
-  // the mean of the frames), trying larger detector inputs first; nullopt
-  // when none is found.
+  // the mean of the frames; failing that, in the first frame that has one:
+  // the mean of frames whose tilts are independent is smeared), trying
+  // larger detector inputs first; nullopt when none is found.
   std::optional<nets::FaceBox> detect_face(const Tensor& clip) {
-    std::vector<float> mean(std::size_t(3 * size * size), 0.f);
+    const std::size_t plane = std::size_t(3 * size * size);
     const std::vector<float> all = clip.download();
-    const std::size_t plane = mean.size(), n = all.size() / plane;
+    const std::size_t n = all.size() / plane;
+    const auto detect = [&](const std::vector<float>& pixels) -> std::optional<nets::FaceBox> {
+      const Tensor image = Tensor::from(device, Shape{1, 3, size, size}, pixels);
+      for (int input : {416, 320, 224, 160}) {
+        FaceOptions fo;
+        fo.input_size = input;
+        const auto found = analyzer.detect(stream, image, fo);
+        if (!found.empty()) return found.front().box;
+      }
+      return std::nullopt;
+    };
+    std::vector<float> frame(plane, 0.f);
     for (std::size_t f = 0; f < n; ++f) {
-      for (std::size_t i = 0; i < plane; ++i) mean[i] += all[f * plane + i] * 255.f / float(n);
+      for (std::size_t i = 0; i < plane; ++i) frame[i] += all[f * plane + i] * 255.f / float(n);
     }
-    const Tensor image = Tensor::from(device, Shape{1, 3, size, size}, mean);
-    for (int input : {416, 320, 224, 160}) {
-      FaceOptions fo;
-      fo.input_size = input;
-      const auto found = analyzer.detect(stream, image, fo);
-      if (!found.empty()) return found.front().box;
+    if (auto box = detect(frame)) return box;
+    for (std::size_t f = 0; n > 1 && f < n; ++f) {
+      for (std::size_t i = 0; i < plane; ++i) frame[i] = all[f * plane + i] * 255.f;
+      if (auto box = detect(frame)) return box;
     }
     return std::nullopt;
   }
@@ -353,32 +374,40 @@ struct CoTrainer::Impl {
     return d.download();
   }
 
-  void prepare_faces() {
-    if (prepared) return;
-    // An unpaired clip whose face the detector misses is left out, as a
-    // pipeline on real footage would (paired clips have a clean frame).
+  // Unpaired training clips: uploads each and finds its face box; a clip in
+  // none of whose frames the detector finds a face is left out, as a
+  // pipeline on real footage would do, and so is a held-out face whose
+  // identity keeps no training clip.
+  void keep_faces_with_a_face() {
     std::vector<CoTrainFace> kept;
-    std::vector<int> kept_labels;
-    for (std::size_t i = 0; i < faces.size(); ++i) {
-      Tensor clip = upload_face(faces[i]);
-      const std::optional<nets::FaceBox> box =
-          faces[i].paired() ? find_face(faces[i], clip) : detect_face(clip);
+    std::set<std::string> kept_identities;
+    for (CoTrainFace& face : faces) {
+      Tensor clip = upload_face(face);
+      const std::optional<nets::FaceBox> box = detect_face(clip);
       if (!box) {
-        dropped.push_back(faces[i].source);
+        dropped.push_back(face.source);
         continue;
       }
       face_clip.push_back(std::move(clip));
       face_box.push_back(*box);
-      kept.push_back(std::move(faces[i]));
-      kept_labels.push_back(labels[i]);
+      kept_identities.insert(face.identity);
+      kept.push_back(std::move(face));
     }
     faces = std::move(kept);
-    labels = std::move(kept_labels);
-    for (std::size_t l = 0; l < identities.size(); ++l) {
-      require(std::find(labels.begin(), labels.end(), int(l)) != labels.end(),
-              "no face found in any training clip of identity '" + identities[l] + "' (" +
-                  std::to_string(dropped.size()) + " clips without one)",
-              "use more clips per identity or a weaker turbulence range");
+    std::erase_if(val, [&](const CoTrainFace& face) {
+      const bool lost = !kept_identities.contains(face.identity);
+      if (lost) dropped_identities.insert(face.identity);
+      return lost;
+    });
+  }
+
+  void prepare_faces() {
+    if (prepared) return;
+    if (face_clip.empty()) {  // unpaired clips were found in the constructor
+      for (const CoTrainFace& face : faces) {
+        face_clip.push_back(upload_face(face));
+        face_box.push_back(find_face(face, face_clip.back()));
+      }
     }
     for (std::size_t i = 0; i < val.size(); ++i) {
       val_clip.push_back(upload_face(val[i]));
@@ -539,6 +568,10 @@ const Restorer& CoTrainer::student() const { return *impl_->model->student; }
 const nets::AdaFaceHead& CoTrainer::head() const { return *impl_->model->head; }
 
 const std::vector<std::string>& CoTrainer::faceless_clips() const { return impl_->dropped; }
+
+std::vector<std::string> CoTrainer::faceless_identities() const {
+  return {impl_->dropped_identities.begin(), impl_->dropped_identities.end()};
+}
 
 std::int64_t CoTrainer::trainable_parameters() const {
   std::int64_t n = 0;

@@ -143,8 +143,10 @@ class CoTrainer {
   // The identities in class order.
   const std::vector<std::string>& identities() const;
   // The unpaired training clips left out because the detector found no face
-  // in their mean frame (known after prepare()).
+  // in their mean frame nor in any frame (the constructor looks), and the
+  // identities left without a clip (their held-out faces are left out too).
   const std::vector<std::string>& faceless_clips() const;
+  std::vector<std::string> faceless_identities() const;
   // Parameters that train (student's groups + the head's centres).
   std::int64_t trainable_parameters() const;
 

@@ -35,16 +35,23 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
   json j = parse_json(r.output);
   EXPECT_EQ(j["videos"], 6);  // 3 identities × 2 strengths of the val split
   EXPECT_GT(j["gain"].get<double>(), 0.0);
-  EXPECT_EQ(j["cues"], "tilt+spectrum");
+  EXPECT_EQ(j["cues"], "spectrum");
   EXPECT_NE(j["blur_exponent"].get<double>(), 0.0);
+  EXPECT_EQ(j["exponent"].get<double>(), 0.0);
   EXPECT_TRUE(fs::exists(cal));
-  // The tilt alone; a band that is not one is a usage error before any work.
+  // The tilt alone, and both cues; a band that is not one is a usage error
+  // before any work.
   const fs::path cal_tilt = tmp.path / "cal_tilt.safetensors";
   r = run_cli("estimate-train " + cal_tilt.string() + " --benchmark " + manifest +
               " --cues tilt --json");
   ASSERT_EQ(r.code, 0) << r.output;
   EXPECT_EQ(parse_json(r.output)["cues"], "tilt");
   EXPECT_EQ(parse_json(r.output)["blur_exponent"].get<double>(), 0.0);
+  const fs::path cal_both = tmp.path / "cal_both.safetensors";
+  r = run_cli("estimate-train " + cal_both.string() + " --benchmark " + manifest +
+              " --cues tilt+spectrum --json");
+  ASSERT_EQ(r.code, 0) << r.output;
+  EXPECT_EQ(parse_json(r.output)["cues"], "tilt+spectrum");
   r = run_cli("estimate-train " + (tmp.path / "bad.safetensors").string() + " --benchmark " +
               manifest + " --band 0.3 0.2");
   EXPECT_EQ(r.code, 2) << r.output;
@@ -67,8 +74,9 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
     EXPECT_EQ(v["frames"], 10);
     EXPECT_GT(v["spectral_fluctuation"].get<double>(), 0.0) << v.dump();
     EXPECT_EQ(v["spectral_tiles"], 4) << v.dump();  // 64² tiles of a 96² frame
+    EXPECT_FALSE(v.contains("raw_d_over_r0")) << v.dump();  // the tilt is not measured
   }
-  EXPECT_EQ(j["cues"], "tilt+spectrum");
+  EXPECT_EQ(j["cues"], "spectrum");
   // weak, strong and all, each with its error statistics.
   ASSERT_EQ(j["errors"].size(), 3u) << j.dump();
   EXPECT_EQ(j["errors"][2]["group"], "all");
@@ -78,8 +86,12 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
   // The device registration: a calibration of its own, used as it was fitted.
   const fs::path cal_lk = tmp.path / "cal_lk.safetensors";
   r = run_cli("estimate-train " + cal_lk.string() + " --benchmark " + manifest +
-              " --registration lk --iterations 3 --passes 1 --json");
+              " --cues tilt --registration lk --iterations 3 --passes 1 --json");
   ASSERT_EQ(r.code, 0) << r.output;
+  r = run_cli("estimate-train " + (tmp.path / "lk_spectrum.safetensors").string() +
+              " --benchmark " + manifest + " --registration lk");
+  EXPECT_EQ(r.code, 2) << r.output;  // the spectrum alone registers nothing
+  EXPECT_NE(r.output.find("--cues"), std::string::npos) << r.output;
   r = run_cli("estimate --benchmark " + manifest + " --calibration " + cal_lk.string() +
               " --json --quiet");
   ASSERT_EQ(r.code, 0) << r.output;
@@ -95,12 +107,13 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
     r = run_cli("estimate " + video.string() + " --calibration " + cal.string() + " --json");
     ASSERT_EQ(r.code, 0) << r.output;
     const json one = parse_json(r.output);
-    (std::string(s) == "weak" ? weak : strong) += one["raw_d_over_r0"].get<double>();
-    // The shipped calibration (artifacts/turbulence_estimator.safetensors).
+    (std::string(s) == "weak" ? weak : strong) += one["d_over_r0"].get<double>();
+    // The shipped calibration (artifacts/turbulence_estimator.safetensors)
+    // measures the same cue with the same options.
     r = run_cli("estimate " + video.string() + " --json");
     ASSERT_EQ(r.code, 0) << r.output;
-    EXPECT_DOUBLE_EQ(parse_json(r.output)["raw_d_over_r0"].get<double>(),
-                     one["raw_d_over_r0"].get<double>());
+    EXPECT_DOUBLE_EQ(parse_json(r.output)["spectral_fluctuation"].get<double>(),
+                     one["spectral_fluctuation"].get<double>());
   }
   EXPECT_GT(strong, weak);
 

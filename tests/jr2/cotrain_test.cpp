@@ -225,10 +225,27 @@ TEST(CoTrainer, FineTuneAlignFirstAndUnpairedTakeSteps) {
   EXPECT_TRUE(std::isfinite(r.loss) && r.loss > 0);
   EXPECT_EQ(t->options_metadata().at("cotrain.data"), "unpaired");
   EXPECT_EQ(t->faceless_clips(), std::vector<std::string>{"grey"});
-  // An identity left with no face: an error naming it.
+  // An identity whose every clip is faceless is left out with its held-out
+  // faces.
+  {
+    std::vector<CoTrainFace> three;
+    for (CoTrainFace f : sample_faces(3)) {
+      for (int k = 0; k < 3; ++k) f.frames.push_back(f.clean);
+      f.clean = HostTensor{};
+      three.push_back(std::move(f));
+    }
+    for (HostTensor& im : three[2].frames) std::fill(im.values.begin(), im.values.end(), 90.f);
+    Device& dev = test::device();
+    CoTrainer lost(dev, o, run.teacher, three, sample_faces(3), sim::load_shipped_blur_models(dev));
+    EXPECT_EQ(lost.identities().size(), 2u);
+    EXPECT_EQ(lost.faceless_clips(), std::vector<std::string>{three[2].source});
+    EXPECT_EQ(lost.faceless_identities(), std::vector<std::string>{three[2].identity});
+    EXPECT_TRUE(std::isfinite(lost.train_step().loss));
+  }
+  // With one identity left, nothing can train.
   unpaired.erase(unpaired.begin());
-  auto lost = make(o, run.teacher, unpaired);
-  test::expect_invalid_argument([&] { lost->prepare(); }, "'" + grey.identity + "'");
+  test::expect_invalid_argument([&] { make(o, run.teacher, unpaired); },
+                                "1 training identities (1 clips without a detectable face");
 }
 
 TEST(CoTrainer, BadOptionsAndFacesAreClearErrors) {
