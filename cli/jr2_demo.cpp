@@ -7,6 +7,7 @@
 #include <vkjr2/jr2/restorer.hpp>
 #include <vkjr2/jr2/turbulence.hpp>
 #include <vkjr2/nets/autograd.hpp>
+#include <vkjr2/nets/safetensors.hpp>
 #include <vkjr2/runtime/device.hpp>
 #include <vkjr2/runtime/error.hpp>
 #include <vkjr2/runtime/image.hpp>
@@ -37,6 +38,7 @@
 #include "cv_image.hpp"
 #include "log.hpp"
 #include "media.hpp"
+#include "plot.hpp"
 
 namespace vkjr2::cli {
 namespace {
@@ -45,7 +47,7 @@ namespace fs = std::filesystem;
 using ojson = nlohmann::ordered_json;
 
 struct Jr2DemoArgs {
-  std::string out = "out/demo", device;
+  std::string out = "out/demo", device, cotrain_study = "out/cotrain";
   int identities = 6, frames = 30, clip = 160, face_px = 80, montage = 4, resamples = 1000;
   std::uint64_t seed = 1;
   bool quiet = false, force = false, json_out = false;
@@ -272,6 +274,84 @@ const ojson& at_key(const ojson& list, const char* key, double value) {
   return none;
 }
 
+// The λ trade-off of a co-training study (scripts/cotrain_study's folder:
+// its models and eval/results.json): for each evaluated restore-first model
+// of all layers trained on paired clips with λ > 0, PSNR and the
+// recognition at strong turbulence against λ, as lambda_psnr.png and
+// lambda_recognition.png in `out`. Returns the λ values drawn (none when
+// the folder holds no such study).
+std::vector<double> write_lambda_plots(const fs::path& study, const fs::path& out) {
+  const fs::path results_path = study / "eval" / "results.json";
+  if (!fs::exists(results_path)) return {};
+  std::ifstream in(results_path);
+  const ojson results = ojson::parse(in, nullptr, false);
+  if (!results.is_object() || !results.contains("rows")) {
+    log_warn("demo: " + results_path.string() + " is not an evaluation's results.json: no λ plot");
+    return {};
+  }
+  struct Point {
+    double lambda, psnr, rank1, tar;
+  };
+  std::vector<Point> points;
+  for (const ojson& r : results["rows"]) {
+    const std::string method = r.value("method", "");
+    if (r.value("strength", "") != "strong" || !method.starts_with("restored:")) continue;
+    const fs::path model = study / (method.substr(9) + ".safetensors");
+    if (!fs::exists(model)) continue;
+    std::map<std::string, std::string> meta;
+    try {
+      meta = nets::read_safetensors(model).metadata;
+    } catch (const Error&) {
+      continue;
+    }
+    const auto get = [&](const char* k) {
+      const auto it = meta.find(k);
+      return it == meta.end() ? std::string() : it->second;
+    };
+    const double lambda = std::strtod(get("cotrain.lambda").c_str(), nullptr);
+    if (!(lambda > 0) || get("cotrain.layers") != "all" ||
+        get("cotrain.order") != "restore-first" || !get("cotrain.unpaired").empty()) {
+      continue;
+    }
+    points.push_back({lambda, r["psnr_db"].value("value", std::nan("")),
+                      100 * at_key(r["rank"], "rank", 1).value("value", std::nan("")),
+                      100 * at_key(r["tar_at_far"], "far", 0.1).value("value", std::nan(""))});
+  }
+  if (points.size() < 2) return {};
+  std::sort(points.begin(), points.end(),
+            [](const Point& x, const Point& y) { return x.lambda < y.lambda; });
+  PlotSpec psnr, rec;
+  psnr.log_x = rec.log_x = true;
+  psnr.x_label = rec.x_label = "λ (weight of the self-distillation)";
+  psnr.x_min = rec.x_min = points.front().lambda / 1.5;
+  psnr.x_max = rec.x_max = points.back().lambda * 1.5;
+  psnr.title = "Restoration quality against λ (strong turbulence, " + study.string() + ")";
+  psnr.y_label = "PSNR (dB)";
+  rec.title = "Recognition against λ (strong turbulence, " + study.string() + ")";
+  rec.y_label = "%";
+  rec.y_min = 0;
+  rec.y_max = 100;
+  PlotSeries p{"PSNR", {}}, r1{"Rank-1", {}}, tar{"TAR at FAR 10 %", {}};
+  double lo = 1e9, hi = -1e9;
+  for (const Point& x : points) {
+    p.points.emplace_back(x.lambda, x.psnr);
+    r1.points.emplace_back(x.lambda, x.rank1);
+    tar.points.emplace_back(x.lambda, x.tar);
+    lo = std::min(lo, x.psnr);
+    hi = std::max(hi, x.psnr);
+  }
+  psnr.y_min = std::floor(lo - 0.5);
+  psnr.y_max = std::ceil(hi + 0.5);
+  psnr.series = {p};
+  rec.series = {r1, tar};
+  rec.legend_top = true;
+  write_plot(out / "lambda_psnr.png", psnr, true);
+  write_plot(out / "lambda_recognition.png", rec, true);
+  std::vector<double> lambdas;
+  for (const Point& x : points) lambdas.push_back(x.lambda);
+  return lambdas;
+}
+
 void run_jr2_demo(const Jr2DemoArgs& a) {
   const auto t0 = std::chrono::steady_clock::now();
   // Every artifact the study reads, before any work.
@@ -342,6 +422,7 @@ void run_jr2_demo(const Jr2DemoArgs& a) {
   t = std::chrono::steady_clock::now();
   note("4/4 the montage and the report");
   write_montage(a, bench, m, configs, eval / "scores.csv");
+  const std::vector<double> lambdas = write_lambda_plots(a.cotrain_study, out);
   step_seconds["montage"] = seconds_since(t);
 
   std::ifstream rin(eval / "results.json");
@@ -428,8 +509,18 @@ void run_jr2_demo(const Jr2DemoArgs& a) {
      << "\n\nPictures: `montage.png` (clean | degraded | restored | co-optimized, each "
         "face labelled with its top gallery match and cosine; green: the right identity), "
         "`eval/roc.png`, `eval/cmc.png`, `eval/fnir_fpir.png`, `eval/rank_change.png`; a "
-        "restored probe video: `restored_probe.avi`. The full study on the whole benchmark, "
-        "beside the seed paper's numbers, is docs/jr2.md §5 and §8.\n";
+        "restored probe video: `restored_probe.avi`. ";
+  if (lambdas.empty()) {
+    md << "No λ trade-off plot: " << a.cotrain_study
+       << " holds no evaluated co-training study (`scripts/cotrain_study " << a.cotrain_study
+       << "` makes one, in about an hour a model). ";
+  } else {
+    md << "The λ trade-off of the co-training study in " << a.cotrain_study << " (λ =";
+    for (double l : lambdas) md << " " << l;
+    md << "): `lambda_psnr.png`, `lambda_recognition.png`. ";
+  }
+  md << "The full study on the whole benchmark, beside the seed paper's numbers, is docs/jr2.md "
+        "§5 and §8.\n";
   const std::string report = md.str();
   const ojson j{{"identities", m.identities},
                 {"probes", m.probes.size()},
@@ -438,7 +529,8 @@ void run_jr2_demo(const Jr2DemoArgs& a) {
                 {"step_seconds", step_seconds},
                 {"table", summary},
                 {"says", says},
-                {"evaluation", (eval / "results.json").string()}};
+                {"evaluation", (eval / "results.json").string()},
+                {"lambda_plot", lambdas}};
   const std::string jtext = j.dump(1) + "\n";
   write_file_atomic(out / "results.json", std::as_bytes(std::span(jtext)), "demo");
   write_file_atomic(out / "report.md", std::as_bytes(std::span(report)), "demo");
@@ -470,7 +562,10 @@ void add_demo(CLI::App& app) {
       "PSNR, SSIM,\n"
       "skip rate, time per probe, with 95 % intervals), results.json, montage.png, "
       "restored_probe.avi and the\n"
-      "evaluation's plots in OUT/eval. The study on the whole benchmark is docs/jr2.md.\n"
+      "evaluation's plots in OUT/eval; with an evaluated co-training study in --cotrain-study, "
+      "its λ trade-off\n"
+      "(lambda_psnr.png, lambda_recognition.png). The study on the whole benchmark is "
+      "docs/jr2.md.\n"
       "Example:\n  vkjr2 demo --out out/demo --force\n"
       "The turbulence-vs-recognition study on the sample photos and vtest.avi: vkjr2 "
       "demo-turbulence.");
@@ -490,6 +585,10 @@ void add_demo(CLI::App& app) {
   cmd->add_option("--montage", a->montage, "Probes in montage.png")
       ->default_val(a->montage)
       ->check(integer_range(1, 50));
+  cmd->add_option("--cotrain-study", a->cotrain_study,
+                  "A co-training study's folder (scripts/cotrain_study): when it holds an "
+                  "evaluated λ sweep, its trade-off is plotted")
+      ->default_val(a->cotrain_study);
   cmd->add_option("--resamples", a->resamples, "Bootstrap resamples of each interval")
       ->default_val(a->resamples)
       ->check(integer_range(10, 100000));
