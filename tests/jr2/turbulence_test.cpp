@@ -33,6 +33,14 @@ std::vector<float> texture(int h, int w) {
   return v;
 }
 
+// The texture as a grey RGB scene [1, 3, size, size] on the device.
+Tensor grey_scene(Device& dev, int size) {
+  const auto scene = texture(size, size);
+  std::vector<float> rgb;
+  for (int c = 0; c < 3; ++c) rgb.insert(rgb.end(), scene.begin(), scene.end());
+  return Tensor::from(dev, {1, 3, size, size}, rgb);
+}
+
 // Per-pixel one-axis temporal variance of flows [T, 2, H, W], averaged over
 // the pixels at least `border` from the edge.
 double mean_temporal_variance(const std::vector<float>& flow, int t, int h, int w, int border) {
@@ -116,10 +124,7 @@ TEST(Jr2Turbulence, MeasuresTheVarianceOfKnownShifts) {
 TEST(Jr2Turbulence, FindsTheSimulatorsTilt) {
   Device& dev = test::device();
   const int t = 16, size = 96;
-  const auto scene = texture(size, size);
-  std::vector<float> rgb;
-  for (int c = 0; c < 3; ++c) rgb.insert(rgb.end(), scene.begin(), scene.end());
-  const Tensor x = Tensor::from(dev, {1, 3, size, size}, rgb);
+  const Tensor x = grey_scene(dev, size);
   const auto blur = sim::load_shipped_blur_models(dev);
   double previous_raw = 0;
   for (double d_over_r0 : {2.0, 6.0}) {
@@ -399,10 +404,7 @@ TEST(Jr2Turbulence, SpectralFluctuationMatchesItsReference) {
 TEST(Jr2Turbulence, SpectralFluctuationGrowsWithTheTurbulence) {
   Device& dev = test::device();
   const int t = 12, size = 96;
-  const auto scene = texture(size, size);
-  std::vector<float> rgb;
-  for (int c = 0; c < 3; ++c) rgb.insert(rgb.end(), scene.begin(), scene.end());
-  const Tensor x = Tensor::from(dev, {1, 3, size, size}, rgb);
+  const Tensor x = grey_scene(dev, size);
   const auto blur = sim::load_shipped_blur_models(dev);
   double previous = 0;
   for (double d_over_r0 : {1.5, 6.0}) {
@@ -414,6 +416,7 @@ TEST(Jr2Turbulence, SpectralFluctuationGrowsWithTheTurbulence) {
     previous = m.fluctuation;
   }
   const sim::Params optics = probe_sim_params(2.0, size);
+  const std::vector<float> scene = texture(size, size);
   test::expect_invalid_argument([&] { (void)spectral_fluctuation(scene, 1, size, size, optics); },
                                 "1 frame");
   std::vector<float> two = scene;
