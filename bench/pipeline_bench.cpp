@@ -306,7 +306,7 @@ void run_bench_pipeline(const PipelineArgs& a) {
     const double saved = 1 - median(t_gated) / median(t_restore);
     std::printf(
         "\ngate: restored %zu of %zu probes; %.0f %% of restore-all's time saved (the gate's "
-        "features, a DIS tilt estimate and the sharpness, included)\n",
+        "features, the turbulence estimate and the sharpness, included)\n",
         gate_restored, probes.size(), 100 * saved);
   }
   std::printf(
