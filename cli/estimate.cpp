@@ -352,9 +352,10 @@ void run_train(TrainArgs& a) {
     throw UsageError("--band/--tile/--stride", e.problem(), e.fix());
   }
   if (a.cues == "spectrum" && a.registration != "dis") {
-    throw UsageError("--registration", "--registration " + a.registration +
-                                           " with --cues spectrum, which registers nothing",
-                     "add --cues tilt or --cues tilt+spectrum");
+    throw UsageError(
+        "--registration",
+        "--registration " + a.registration + " with --cues spectrum, which registers nothing",
+        "add --cues tilt or --cues tilt+spectrum");
   }
   check_output_file(a.output, a.force, "OUT");
   check_extension(a.output, {".safetensors"}, "OUT");

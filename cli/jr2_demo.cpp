@@ -48,7 +48,7 @@ using ojson = nlohmann::ordered_json;
 
 struct Jr2DemoArgs {
   std::string out = "out/demo", device, cotrain_study = "out/cotrain";
-  int identities = 6, frames = 30, clip = 160, face_px = 80, montage = 4, resamples = 1000;
+  int identities = 5, frames = 30, clip = 160, face_px = 80, montage = 4, resamples = 1000;
   std::uint64_t seed = 1;
   bool quiet = false, force = false, json_out = false;
 };

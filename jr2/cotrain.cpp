@@ -185,7 +185,7 @@ struct CoTrainer::Impl {
   std::vector<nets::FaceBox> face_box, val_box;
   std::vector<float> centres;  // [classes, 128] clean centres (the fixed yardstick)
   bool prepared = false;
-  std::vector<std::string> dropped;  // unpaired training clips without a detected face
+  std::vector<std::string> dropped;          // unpaired training clips without a detected face
   std::set<std::string> dropped_identities;  // identities that kept no clip (nor held-out face)
   // The pool: clip k in slot k % pool.
   Tensor pool_frames;

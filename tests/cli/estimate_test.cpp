@@ -73,7 +73,7 @@ TEST(CliEstimate, CalibratesAndEstimatesBenchmarkProbes) {
     EXPECT_GT(v["true_d_over_r0"].get<double>(), 0.0) << v.dump();
     EXPECT_EQ(v["frames"], 10);
     EXPECT_GT(v["spectral_fluctuation"].get<double>(), 0.0) << v.dump();
-    EXPECT_EQ(v["spectral_tiles"], 4) << v.dump();  // 64² tiles of a 96² frame
+    EXPECT_EQ(v["spectral_tiles"], 4) << v.dump();          // 64² tiles of a 96² frame
     EXPECT_FALSE(v.contains("raw_d_over_r0")) << v.dump();  // the tilt is not measured
   }
   EXPECT_EQ(j["cues"], "spectrum");
