@@ -403,7 +403,7 @@ struct CoTrainer::Impl {
 
   void prepare_faces() {
     if (prepared) return;
-    if (face_clip.empty()) {  // unpaired clips were found in the constructor
+    if (paired) {  // unpaired clips were uploaded and found in the constructor
       for (const CoTrainFace& face : faces) {
         face_clip.push_back(upload_face(face));
         face_box.push_back(find_face(face, face_clip.back()));

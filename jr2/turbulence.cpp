@@ -465,7 +465,7 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
   c.tilt.passes = int(parse_number(file.metadata, "tilt.passes", path));
   c.tilt.min_eigenvalue = float(parse_number(file.metadata, "tilt.min_eigenvalue", path));
   c.tilt.border = int(parse_number(file.metadata, "tilt.border", path));
-  // A calibration without the spectral keys is a tilt-only one.
+  // A calibration without the spectral keys is a tilt-only one (blur_exponent stays 0).
   if (file.metadata.contains("cues")) {
     c.blur_exponent = parse_number(file.metadata, "blur_exponent", path);
     c.blur_correlation = parse_number(file.metadata, "blur_correlation", path);
@@ -482,8 +482,6 @@ TurbulenceCalibration TurbulenceCalibration::load(const std::filesystem::path& p
                       num(c.blur_correlation),
                   "make the file again with `vkjr2 estimate-train`");
     }
-  } else {
-    c.blur_exponent = 0;
   }
   const auto reg = file.metadata.find("registration");
   if (reg == file.metadata.end() || (reg->second != "dis" && reg->second != "lk")) {
