@@ -281,7 +281,13 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
                a.batch, a.window, config.frames, a.repeat);
   StepTimes times;
   g.step(nullptr, times);
+  device.reset_profile();  // VKJR2_PROFILE=1: the timed steps only (no JIT, no first touches)
   for (int i = 0; i < a.repeat; ++i) g.step(&times, times);
+  if (device.profiling_enabled()) {
+    std::fprintf(stderr, "bench cotrain: the %d timed steps, device time per kernel:\n%s", a.repeat,
+                 device.profile_report().c_str());
+    device.reset_profile();
+  }
 
   // The landmarks CoTrainer finds on each restored window (a centred face box of 0.6·W), the
   // 5 points, the similarity and theta, uploaded: host work between the stages, outside the

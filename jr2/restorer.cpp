@@ -261,10 +261,26 @@ Var NafBlock::forward(Tape& t, const Var& x) const {
   Var h = nets::layer_norm_channels(t, x, norm1_weight, norm1_bias, kNormEps);
   h = nets::simple_gate(t, conv2_->forward(t, conv1_->forward(t, h)));
   h = nets::mul_sample_channel(t, h, sca_->forward(t, nets::global_avg_pool(t, h)));
-  const Var y = nets::add(t, x, nets::mul_channel(t, conv3_->forward(t, h), beta));
+  const Var y = scaled_residual(t, *conv3_, conv3_plans_, h, beta, x);
   h = nets::layer_norm_channels(t, y, norm2_weight, norm2_bias, kNormEps);
-  h = conv5_->forward(t, nets::simple_gate(t, conv4_->forward(t, h)));
-  return nets::add(t, y, nets::mul_channel(t, h, gamma));
+  return scaled_residual(t, *conv5_, conv5_plans_, nets::simple_gate(t, conv4_->forward(t, h)),
+                         gamma, y);
+}
+
+// x + (W·h + b)·s = x + (s ⊙ W)·h + s ⊙ b: the scale applied to the [C, C]
+// weight and the bias, the add in the convolution's epilogue, instead of two
+// passes over the full-size activations forward (and their backward).
+Var NafBlock::scaled_residual(Tape& t, const nets::Conv2d& conv, const nets::ConvPlans& plans,
+                              const Var& h, const Var& scale, const Var& residual) const {
+  const Shape& w = conv.weight.shape();  // [C, C, 1, 1]
+  const Var weight = nets::reshape(
+      t,
+      nets::mul_channel(t, nets::reshape(t, conv.weight, Shape{1, w[0], w[1] * w[2] * w[3]}),
+                        scale),
+      w);
+  const Var bias = nets::reshape(
+      t, nets::mul_channel(t, nets::reshape(t, conv.bias, Shape{1, w[0]}), scale), Shape{w[0]});
+  return nets::conv2d(t, h, weight, bias, conv.params, &plans, residual);
 }
 
 Restorer::Restorer(const Device& device, const RestorerConfig& config, std::uint32_t seed)

@@ -68,7 +68,14 @@ class NafBlock : public nets::Module {
   nets::Var norm1_weight, norm1_bias, norm2_weight, norm2_bias, beta, gamma;
 
  private:
+  // residual + conv(h) · scale[c] as one convolution with the residual in its
+  // epilogue, its weight and bias scaled per output channel.
+  nets::Var scaled_residual(nets::Tape& t, const nets::Conv2d& conv, const nets::ConvPlans& plans,
+                            const nets::Var& h, const nets::Var& scale,
+                            const nets::Var& residual) const;
+
   nets::Conv2d *conv1_, *conv2_, *sca_, *conv3_, *conv4_, *conv5_;
+  nets::ConvPlans conv3_plans_, conv5_plans_;  // of the scaled weights
 };
 
 class Restorer : public nets::Module {

@@ -91,7 +91,13 @@ Tensor pad_input(Stream& stream, const Tensor& x, const ConvPush& c) {
   const std::uint32_t gz = std::clamp<std::uint32_t>(
       kPadGroups / (gx * gy), 1u, std::min(planes, stream.device().info().max_workgroup_count[2]));
   const Groups g{gx, gy, gz};
-  stream.dispatch(kPad, {texel(x), out(xp)}, c, g);
+  // Whole quads of x (shaders/conv2d_pad.comp, VEC4) when its rows are.
+  if (c.w % 4 == 0 && x.vk_offset() % 16 == 0) {
+    const auto shift = std::uint32_t(((-c.pl) % 4 + 4) % 4);
+    stream.dispatch(kPad, {texel(x, VK_FORMAT_R32G32B32A32_SFLOAT), out(xp)}, c, g, {1u, shift});
+    return xp;
+  }
+  stream.dispatch(kPad, {texel(x), out(xp)}, c, g, {0u, 0u});
   return xp;
 }
 

@@ -295,6 +295,7 @@ namespace {
 // Mirrors the push block of shaders/pixel_shuffle.comp.
 struct ShufflePush {
   std::uint32_t h, w;
+  Magic quads;  // fast_div by W/4 (the vec4 variant)
 };
 
 // small: [N, C·r², H, W]; big: [N, C, H·r, W·r]. unshuffle: big → small.
@@ -327,11 +328,24 @@ void pixel_shuffle_dispatch(Stream& stream, const char* op, bool unshuffle, cons
         op, std::string(big_name) + " " + b.str() + " needs more workgroups than the device allows",
         "split the batch or the channels into smaller tensors");
   }
-  stream.dispatch(k, {texel(x), out(y)},
-                  ShufflePush{static_cast<std::uint32_t>(s[2]), static_cast<std::uint32_t>(s[3])},
-                  Groups{div_up(std::uint64_t(b[3]), 256), static_cast<std::uint32_t>(b[2]),
-                         static_cast<std::uint32_t>(b[0] * b[1])},
-                  {static_cast<std::uint32_t>(r), unshuffle ? 1u : 0u});
+  const auto h = static_cast<std::uint32_t>(s[2]), w = static_cast<std::uint32_t>(s[3]);
+  const auto planes = static_cast<std::uint32_t>(b[0] * b[1]);
+  // Quads of small pixels in all phases (shaders/pixel_shuffle.comp, VEC4).
+  constexpr std::uint32_t lanes = 64;
+  const std::uint64_t quads = std::uint64_t(h) * (w / 4);
+  const bool vec4 = w % 4 == 0 && r <= 4 && x.vk_offset() % 16 == 0 && y.vk_offset() % 16 == 0 &&
+                    div_up(quads, lanes) <= info.max_workgroup_count[0];
+  if (vec4) {
+    stream.dispatch(k, {texel(x, VK_FORMAT_R32G32B32A32_SFLOAT), out(y)},
+                    ShufflePush{h, w, magic(w / 4)},
+                    Groups{static_cast<std::uint32_t>(div_up(quads, lanes)), 1, planes},
+                    {static_cast<std::uint32_t>(r), unshuffle ? 1u : 0u, 1u, lanes});
+    return;
+  }
+  stream.dispatch(
+      k, {texel(x), out(y)}, ShufflePush{h, w, {}},
+      Groups{div_up(std::uint64_t(b[3]), 256), static_cast<std::uint32_t>(b[2]), planes},
+      {static_cast<std::uint32_t>(r), unshuffle ? 1u : 0u, 0u, 256u});
 }
 
 }  // namespace

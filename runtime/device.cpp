@@ -154,7 +154,7 @@ void DeviceCore::init_common(const DeviceOptions& options) {
       VK_BUFFER_USAGE_UNIFORM_TEXEL_BUFFER_BIT | VK_BUFFER_USAGE_STORAGE_TEXEL_BUFFER_BIT |
       VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT;
   allocator = std::make_unique<Allocator>(device, choice, usage, options.block_bytes, alignment,
-                                          info.max_memory_allocation_bytes);
+                                          info.max_memory_allocation_bytes, options.cache_memory);
 
   VkCommandPoolCreateInfo pool_info{VK_STRUCTURE_TYPE_COMMAND_POOL_CREATE_INFO};
   pool_info.flags = VK_COMMAND_POOL_CREATE_RESET_COMMAND_BUFFER_BIT;
@@ -290,6 +290,7 @@ bool Device::profiling_enabled() const { return core_->profile; }
 bool Device::push_descriptors_enabled() const { return core_->push_descriptors; }
 bool Device::staging() const { return core_->staging; }
 MemoryStats Device::memory_stats() const { return core_->allocator->stats(); }
+void Device::release_cached_memory() const { core_->allocator->trim(); }
 std::string Device::profile_report() const { return core_->profile_report(); }
 void Device::reset_profile() const { core_->reset_profile(); }
 

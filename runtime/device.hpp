@@ -82,6 +82,9 @@ struct DeviceOptions {
   bool force_staging = false;
   // Size of the memory blocks tensors are sub-allocated from.
   std::uint64_t block_bytes = 64ull << 20;
+  // Keep blocks that become empty for the next allocations instead of giving
+  // them back to the driver at once (see Device::release_cached_memory).
+  bool cache_memory = true;
   // The tuning profile (runtime/device_traits.hpp): "lavapipe" or "gpu".
   // Empty: VKJR2_DEVICE_TRAITS, else chosen by the device's driver.
   std::string traits_profile;
@@ -131,6 +134,10 @@ class Device {
   std::vector<std::string> validation_messages() const;
 
   MemoryStats memory_stats() const;
+  // Gives the empty memory blocks kept for reuse back to the driver (a host
+  // that shares the device can call it after vkjr2's work). Allocations that
+  // would not fit otherwise do this themselves first.
+  void release_cached_memory() const;
   // Per-kernel GPU times gathered so far (VKJR2_PROFILE=1), as a table.
   std::string profile_report() const;
   // Forgets the times gathered so far (e.g. model loading and warm-up runs).

@@ -16,13 +16,15 @@ VkDeviceSize align_up(VkDeviceSize value, VkDeviceSize alignment) {
 }  // namespace
 
 Allocator::Allocator(VkDevice device, MemoryChoice choice, VkBufferUsageFlags usage,
-                     VkDeviceSize block_bytes, VkDeviceSize alignment, VkDeviceSize max_allocation)
+                     VkDeviceSize block_bytes, VkDeviceSize alignment, VkDeviceSize max_allocation,
+                     bool cache)
     : device_(device),
       choice_(choice),
       usage_(usage),
       block_bytes_(block_bytes),
       alignment_(alignment),
-      max_allocation_(max_allocation) {}
+      max_allocation_(max_allocation),
+      cache_(cache) {}
 
 Allocator::~Allocator() {
   for (auto& block : blocks_) destroy_block(*block);
@@ -99,12 +101,47 @@ Block* Allocator::new_block(VkDeviceSize bytes, bool dedicated, std::string_view
   return blocks_.back().get();
 }
 
+Block* Allocator::new_block_or_trim(VkDeviceSize bytes, bool dedicated, std::string_view what) {
+  const bool any_empty = std::any_of(blocks_.begin(), blocks_.end(),
+                                     [](const std::unique_ptr<Block>& b) { return b->used == 0; });
+  if (!any_empty) return new_block(bytes, dedicated, what);
+  try {
+    return new_block(bytes, dedicated, what);
+  } catch (const OutOfMemoryError&) {
+    trim_locked();
+    return new_block(bytes, dedicated, what);
+  }
+}
+
+Block* Allocator::cached_dedicated(VkDeviceSize bytes) {
+  Block* best = nullptr;
+  for (auto& b : blocks_) {
+    if (!b->dedicated || b->used != 0 || b->size < bytes || b->size - bytes > bytes / 4) continue;
+    if (best == nullptr || b->size < best->size) best = b.get();
+  }
+  return best;
+}
+
+void Allocator::trim() noexcept {
+  std::lock_guard lock(mutex_);
+  trim_locked();
+}
+
+void Allocator::trim_locked() noexcept {
+  for (auto& b : blocks_) {
+    if (b->used == 0) destroy_block(*b);
+  }
+  std::erase_if(blocks_,
+                [](const std::unique_ptr<Block>& b) { return b->memory == VK_NULL_HANDLE; });
+}
+
 Allocation Allocator::allocate(VkDeviceSize bytes, std::string_view what) {
   const VkDeviceSize size = align_up(std::max<VkDeviceSize>(bytes, 4), alignment_);
   std::lock_guard lock(mutex_);
-  // Large requests get a block of their own, released as soon as they are.
+  // Large requests get a block of their own (a cached one when one fits).
   if (size > block_bytes_ / 2) {
-    Block* block = new_block(size, true, what);
+    Block* block = cached_dedicated(size);
+    if (block == nullptr) block = new_block_or_trim(size, true, what);
     block->free_ranges.clear();
     block->used = size;
     ++allocations_;
@@ -123,7 +160,7 @@ Allocation Allocator::allocate(VkDeviceSize bytes, std::string_view what) {
       return {block.get(), offset, size};
     }
   }
-  Block* block = new_block(block_bytes_, false, what);
+  Block* block = new_block_or_trim(block_bytes_, false, what);
   block->free_ranges.clear();
   if (size < block_bytes_) block->free_ranges.emplace(size, block_bytes_ - size);
   block->used = size;
@@ -156,12 +193,14 @@ void Allocator::release(const Allocation& allocation) noexcept {
     }
   }
   if (block->used != 0) return;
-  // Keep one empty shared block for reuse; give back dedicated and extra ones.
+  if (block->dedicated) block->free_ranges.emplace(0, block->size);  // whole again when cached
+  // Without the cache, keep one empty shared block for reuse and give back the rest.
   const bool keep =
-      !block->dedicated &&
-      std::none_of(blocks_.begin(), blocks_.end(), [block](const std::unique_ptr<Block>& b) {
-        return b.get() != block && !b->dedicated && b->used == 0;
-      });
+      cache_ ||
+      (!block->dedicated &&
+       std::none_of(blocks_.begin(), blocks_.end(), [block](const std::unique_ptr<Block>& b) {
+         return b.get() != block && !b->dedicated && b->used == 0;
+       }));
   if (keep) return;
   auto pos = std::find_if(blocks_.begin(), blocks_.end(),
                           [block](const std::unique_ptr<Block>& b) { return b.get() == block; });
@@ -175,6 +214,7 @@ MemoryStats Allocator::stats() const {
   for (const auto& b : blocks_) {
     s.reserved_bytes += b->size;
     s.used_bytes += b->used;
+    if (b->used == 0) s.cached_bytes += b->size;
   }
   s.blocks = blocks_.size();
   s.allocations = allocations_;

@@ -142,7 +142,7 @@ void DeviceCore::ensure_staging(VkDeviceSize bytes) {
     staging_allocator_ = std::make_unique<Allocator>(
         device, choose_staging_memory(physical_device),
         VK_BUFFER_USAGE_TRANSFER_SRC_BIT | VK_BUFFER_USAGE_TRANSFER_DST_BIT, 64ull << 20, 256,
-        info.max_memory_allocation_bytes);
+        info.max_memory_allocation_bytes, false);
   }
   if (staging_.size >= bytes) return;
   staging_allocator_->release(staging_);

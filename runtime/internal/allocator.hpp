@@ -43,10 +43,16 @@ struct MemoryChoice {
   bool host_coherent = false;
 };
 
+// Blocks left empty are kept for reuse (cache = true): a training step frees
+// and allocates the same gigabyte or so each time, and fresh driver memory
+// costs page faults on first touch (lavapipe: 17 % of a co-training step).
+// They are given back by trim(), and before any allocation that would
+// otherwise not fit the heap or that the driver refuses.
 class Allocator {
  public:
   Allocator(VkDevice device, MemoryChoice choice, VkBufferUsageFlags usage,
-            VkDeviceSize block_bytes, VkDeviceSize alignment, VkDeviceSize max_allocation);
+            VkDeviceSize block_bytes, VkDeviceSize alignment, VkDeviceSize max_allocation,
+            bool cache);
   ~Allocator();
   Allocator(const Allocator&) = delete;
   Allocator& operator=(const Allocator&) = delete;
@@ -54,11 +60,18 @@ class Allocator {
   // Throws OutOfMemoryError (naming `what`, the size and what is free).
   Allocation allocate(VkDeviceSize bytes, std::string_view what);
   void release(const Allocation& allocation) noexcept;
+  // Gives every empty block back to the driver.
+  void trim() noexcept;
   MemoryStats stats() const;
   const MemoryChoice& choice() const { return choice_; }
 
  private:
   Block* new_block(VkDeviceSize bytes, bool dedicated, std::string_view what);
+  // A new block, after giving the empty ones back if it could not be had.
+  Block* new_block_or_trim(VkDeviceSize bytes, bool dedicated, std::string_view what);
+  // An empty dedicated block of at least `bytes` and at most a quarter more.
+  Block* cached_dedicated(VkDeviceSize bytes);
+  void trim_locked() noexcept;
   void destroy_block(Block& block) noexcept;
 
   VkDevice device_;
@@ -67,6 +80,7 @@ class Allocator {
   VkDeviceSize block_bytes_;
   VkDeviceSize alignment_;
   VkDeviceSize max_allocation_;
+  bool cache_;
   mutable std::mutex mutex_;
   std::vector<std::unique_ptr<Block>> blocks_;
   std::size_t allocations_ = 0;

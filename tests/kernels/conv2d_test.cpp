@@ -201,6 +201,15 @@ std::vector<Case> edge_cases() {
   c.p.stride_y = c.p.stride_x = 2;
   c.p.pad = {1, 1, 1, 1};
   cases.push_back(c);
+  // Rows of whole quads (w a multiple of 4) padded by 0..3: the padding
+  // pass reads x by quads, shifted by each offset mod 4 (conv2d_pad.comp).
+  for (int k = 0; k < 4; ++k) {
+    c.d = {1, 4, 5, 8, k % 2 == 0 ? 4 : 6, 3, 3};
+    c.p = {};
+    c.p.pad = {k, k, k, k};
+    if (k % 2 == 0) c.p.groups = 4;  // depthwise
+    cases.push_back(c);
+  }
   return cases;
 }
 

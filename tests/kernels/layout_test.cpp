@@ -175,15 +175,20 @@ TEST(LayoutKernels, ChannelAffineGradientsMatchFiniteDifferences) {
 
 TEST(LayoutKernels, PixelShuffleMatchesReference) {
   // [N, C, H, W, r] of the small side: r = 1 (a copy), one pixel, widths past
-  // the 256-column group, NAFNet's r = 2; then random ones.
+  // the 256-column group, NAFNet's r = 2; the quad variant (W a multiple of
+  // 4, r <= 4) at r = 1..4 and past a 64-lane group, r = 5 on such a width
+  // (the scalar one); then random ones, half of them on quad widths.
   using Dims = std::array<int, 5>;
-  const std::vector<Dims> edges = {
-      {1, 3, 4, 5, 1}, {1, 1, 1, 1, 2}, {2, 2, 3, 130, 2}, {1, 16, 8, 8, 2}, {1, 2, 5, 3, 3}};
-  test::check_op("pixel_shuffle/unshuffle", {.seed = 705, .cases = 9}, [&](test::OpCase& c) {
-    const Dims k = c.index < int(edges.size())
-                       ? edges[std::size_t(c.index)]
-                       : Dims{c.uniform(1, 3), c.uniform(1, 6), c.uniform(1, 24), c.uniform(1, 24),
-                              c.uniform(1, 4)};
+  const std::vector<Dims> edges = {{1, 3, 4, 5, 1},  {1, 1, 1, 1, 2},  {2, 2, 3, 130, 2},
+                                   {1, 16, 8, 8, 2}, {1, 2, 5, 3, 3},  {1, 2, 4, 8, 1},
+                                   {2, 3, 5, 8, 2},  {1, 2, 3, 12, 3}, {1, 1, 2, 4, 4},
+                                   {1, 1, 2, 8, 5},  {1, 2, 9, 132, 2}};
+  test::check_op("pixel_shuffle/unshuffle", {.seed = 705, .cases = 19}, [&](test::OpCase& c) {
+    const Dims k =
+        c.index < int(edges.size())
+            ? edges[std::size_t(c.index)]
+            : Dims{c.uniform(1, 3), c.uniform(1, 6), c.uniform(1, 24),
+                   c.uniform(0, 1) != 0 ? 4 * c.uniform(1, 6) : c.uniform(1, 24), c.uniform(1, 4)};
     const int r = k[4];
     const Nchw small{k[0], k[1] * r * r, k[2], k[3]};
     const Nchw big{k[0], k[1], k[2] * r, k[3] * r};

@@ -4,7 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <string>
+#include <vector>
 
 #include "support/test_device.hpp"
 
@@ -37,18 +39,70 @@ TEST(Memory, NeighbouringFreeRangesCoalesce) {
   EXPECT_EQ(dev.memory_stats().blocks, 1u);
 }
 
-TEST(Memory, LargeTensorGetsDedicatedBlockReleasedOnFree) {
+TEST(Memory, LargeTensorGetsDedicatedBlockCachedForReuse) {
   DeviceOptions o = test::options();
   o.block_bytes = 4 << 20;
   Device dev(o);
   Tensor small = Tensor::empty(dev, {16});
   const auto before = dev.memory_stats();
+  VkBuffer first = VK_NULL_HANDLE;
   {
     Tensor large = Tensor::empty(dev, {1 << 20});  // 4 MiB > block/2
     EXPECT_EQ(dev.memory_stats().blocks, before.blocks + 1);
+    first = large.vk_buffer();
   }
-  EXPECT_EQ(dev.memory_stats().blocks, before.blocks);
-  EXPECT_EQ(dev.memory_stats().reserved_bytes, before.reserved_bytes);
+  // Kept, empty, and handed out again to a request of the same size.
+  EXPECT_EQ(dev.memory_stats().blocks, before.blocks + 1);
+  EXPECT_EQ(dev.memory_stats().cached_bytes, before.cached_bytes + (4u << 20));
+  {
+    Tensor again = Tensor::empty(dev, {1 << 20});
+    EXPECT_EQ(again.vk_buffer(), first);
+    EXPECT_EQ(dev.memory_stats().cached_bytes, before.cached_bytes);
+    // Too large for the cached block (more than a quarter of waste the other way round).
+    Tensor twice = Tensor::empty(dev, {1 << 21});
+    EXPECT_NE(twice.vk_buffer(), first);
+  }
+  dev.release_cached_memory();
+  const auto after = dev.memory_stats();
+  EXPECT_EQ(after.cached_bytes, 0u);
+  EXPECT_EQ(after.blocks, before.blocks);
+  EXPECT_EQ(after.used_bytes, before.used_bytes);
+}
+
+TEST(Memory, EmptySharedBlocksAreCachedOrGivenBack) {
+  for (const bool cache : {true, false}) {
+    DeviceOptions o = test::options();
+    o.block_bytes = 4 << 20;
+    o.cache_memory = cache;
+    Device dev(o);
+    {
+      std::vector<Tensor> ts;
+      for (int i = 0; i < 6; ++i) ts.push_back(Tensor::empty(dev, {512 * 1024}));  // 2 MiB each
+      EXPECT_EQ(dev.memory_stats().blocks, 3u);
+    }
+    // Cached: all three kept; not cached: one kept for reuse.
+    EXPECT_EQ(dev.memory_stats().blocks, cache ? 3u : 1u) << "cache " << cache;
+    EXPECT_EQ(dev.memory_stats().cached_bytes, (cache ? 3u : 1u) * (4u << 20));
+    EXPECT_EQ(dev.memory_stats().used_bytes, 0u);
+  }
+}
+
+// The cache never makes an allocation fail that would fit without it: the
+// empty blocks are given back first.
+TEST(Memory, CachedBlocksAreGivenBackWhenTheHeapIsFull) {
+  Device dev(test::options());
+  const MemoryStats m = dev.memory_stats();
+  const std::uint64_t heap = m.heap_bytes;
+  const std::uint64_t max_alloc = dev.info().max_memory_allocation_bytes;
+  // Two sizes that fit the heap alone but not together.
+  const std::uint64_t a = std::min<std::uint64_t>(heap / 10 * 6, max_alloc) / 4 * 4;
+  const std::uint64_t b = std::min<std::uint64_t>(heap / 10 * 7, max_alloc) / 4 * 4;
+  ASSERT_GT(a + b, heap) << "the device's largest allocation is too small for this check";
+  { Tensor first = Tensor::empty(dev, {std::int64_t(a / 4)}); }
+  EXPECT_GE(dev.memory_stats().cached_bytes, a);
+  Tensor second = Tensor::empty(dev, {std::int64_t(b / 4)});  // needs the cached block given back
+  EXPECT_EQ(dev.memory_stats().cached_bytes, 0u);
+  EXPECT_GE(dev.memory_stats().used_bytes, b);
 }
 
 TEST(Memory, OutOfMemoryNamesSizeAndFreeMemory) {
