@@ -320,6 +320,8 @@ void run_bench_cotrain(BenchCotrainArgs& a) {
 
   json torch_result;
   if (torch.available) {
+    // The memory ours keeps for reuse goes back first: the peer runs beside an idle process.
+    device.release_cached_memory();
     std::fprintf(stderr, "bench cotrain: PyTorch peer, the same step ...\n");
     torch_result = run_torch(torch, a, thetas);
   }
