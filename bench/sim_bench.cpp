@@ -4,6 +4,7 @@
 // device, and with its FFTs on FFTW on the CPU (the fastest wave optics a
 // user of this machine could run).
 #include <vkjr2/runtime/device.hpp>
+#include <vkjr2/runtime/image.hpp>
 #include <vkjr2/runtime/stream.hpp>
 #include <vkjr2/sim/p2s_blur_model.hpp>
 #include <vkjr2/sim/simulator.hpp>
@@ -11,16 +12,20 @@
 
 #include <CLI/CLI.hpp>
 #include <nlohmann/json.hpp>
+#include <unistd.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
+#include <filesystem>
 #include <iterator>
 #include <string>
 #include <vector>
 
 #include "cli/checks.hpp"
 #include "cli/log.hpp"
+#include "cli/media.hpp"
 #include "cli/run.hpp"
 #include "harness.hpp"
 
@@ -36,6 +41,25 @@ struct BenchSimArgs {
   bool json_out = false;
 };
 
+// A folder of this process's own under the system's temporary one, removed
+// with everything in it.
+struct ScratchDir {
+  std::filesystem::path path =
+      std::filesystem::temp_directory_path() / ("vkjr2-bench-sim-" + std::to_string(::getpid()));
+  ScratchDir() { std::filesystem::create_directories(path); }
+  ~ScratchDir() {
+    std::error_code ec;
+    std::filesystem::remove_all(path, ec);
+  }
+  ScratchDir(const ScratchDir&) = delete;
+  ScratchDir& operator=(const ScratchDir&) = delete;
+};
+
+struct StageRow {
+  std::string tag;
+  double fields, warp, p2s, blur, noise, io, sum, frame;
+};
+
 std::vector<float> test_scene(int channels, int h, int w) {
   std::vector<float> v(std::size_t(channels) * std::size_t(h) * std::size_t(w));
   std::size_t i = 0;
@@ -45,12 +69,37 @@ std::vector<float> test_scene(int channels, int h, int w) {
   return v;
 }
 
+// What `vkjr2 simulate in.png out.png` adds to a frame: the PNG read, its
+// upload as planes, the result's download and the PNG write (seconds, the
+// median of `frames`), on the frame y holds.
+double io_seconds(const Device& device, const Tensor& y, const std::filesystem::path& dir,
+                  int frames) {
+  const std::filesystem::path png = dir / "frame.png";
+  const int channels = int(y.shape()[1]);
+  const HostTensor first = image_to_host(y);
+  write_image(
+      png, planes_to_image(image_to_planes(first), channels, y.shape()[2], y.shape()[3], 3, 255.f),
+      true);
+  return bench::median_seconds(
+      [&] {
+        const Tensor x = image_to_device(device, read_image(png), channels, 255.f);
+        const HostTensor out = image_to_host(x);
+        write_image(
+            png,
+            planes_to_image(image_to_planes(out), channels, y.shape()[2], y.shape()[3], 3, 255.f),
+            true);
+      },
+      frames, 0);
+}
+
 void run_bench_sim(const BenchSimArgs& a) {
   // Benchmark results are replaced; the folder must be there before minutes of work.
   if (!a.json_path.empty()) check_output_file(a.json_path, true, "--json-file");
   const Device device = open_device(a.device);
   const auto blur = sim::load_shipped_blur_models(device);
   std::vector<bench::Result> rows;
+  std::vector<StageRow> stage_rows;
+  const ScratchDir scratch;
   nlohmann::json per_size = nlohmann::json::array();
 
   // The reference on one 256² grey frame with sources every wave_step_px.
@@ -100,6 +149,11 @@ void run_bench_sim(const BenchSimArgs& a) {
             stream.run();
           },
           a.frames, 1);
+      // Where the time goes: the same frames stage by stage (each stage's
+      // stream run apart), their mean, and the image I/O of the CLI.
+      sim::FrameStages st;
+      for (int i = 0; i < a.frames; ++i) s.frame(stream, x, y, st);
+      const double io = io_seconds(device, y, scratch.path, a.frames);
       // The reference at the fast simulator's PSF-field resolution: one
       // propagation per grid point (its cost is linear in sources; measured
       // per source above), plus the pixel sum (linear in pixels and channels).
@@ -143,6 +197,12 @@ void run_bench_sim(const BenchSimArgs& a) {
         rows.push_back({"sim " + a.preset + " " + tag, 1 / sec, "frames/s",
                         "wave ref. FFTW, " + sources, 1 / fftw_seconds});
       }
+      const double n = a.frames;
+      j["stages_seconds"] = {{"fields", st.fields / n}, {"warp", st.warp / n},
+                             {"p2s", st.p2s / n},       {"blur", st.blur / n},
+                             {"noise", st.noise / n},   {"image_io", io}};
+      stage_rows.push_back({tag, st.fields / n, st.warp / n, st.p2s / n, st.blur / n, st.noise / n,
+                            io, st.total() / n, sec});
       per_size.push_back(j);
       std::fprintf(stderr, "bench sim: %s %.3f s/frame\n", tag.c_str(), sec);
     }
@@ -150,6 +210,18 @@ void run_bench_sim(const BenchSimArgs& a) {
   bench::print_table(
       "vkjr2 bench sim — fast simulator vs the wave-optics reference (" + a.preset + ")", device,
       rows);
+  std::printf(
+      "\nwhere a frame's time goes (ms, mean of %d frames run stage by stage; image I/O: PNG "
+      "read + upload + download + PNG write, as vkjr2 simulate does; not in the frame)\n",
+      a.frames);
+  std::printf("%-18s %9s %9s %9s %9s %9s %9s %11s %11s\n", "frame", "fields", "warp", "P2S", "blur",
+              "noise", "image I/O", "sum stages", "pipelined");
+  for (const StageRow& r : stage_rows) {
+    std::printf("%-18s %9.1f %9.1f %9.1f %9.1f %9.1f %9.1f %11.1f %11.1f\n", r.tag.c_str(),
+                1e3 * r.fields, 1e3 * r.warp, 1e3 * r.p2s, 1e3 * r.blur, 1e3 * r.noise, 1e3 * r.io,
+                1e3 * r.sum, 1e3 * r.frame);
+  }
+  std::printf("(pipelined: the frame as the timed rows above run it, one stream run a frame)\n");
   std::printf(
       "\nwave-optics reference: %d² propagation grid, %zu screens, δ = %.2f mm, pupil FFT %d, PSFs "
       "%dx%d;\n"

@@ -158,6 +158,7 @@ void Simulator::frame(Stream& stream, const Tensor& x, const Tensor& y) {
   ++frame_;
   input_ = x;
   field_->next(stream);
+  mark(stream, &FrameStages::fields);
   if (options_.tilt) {
     kernels::resize(stream, field_->tilt_px(), kernels::ResizeMode::bilinear_align_corners, flow_);
     // The image moves by τ, so output pixel p reads the input at p − τ.
@@ -167,18 +168,42 @@ void Simulator::frame(Stream& stream, const Tensor& x, const Tensor& y) {
     kernels::fill(stream, flow_, 0.f);
     kernels::copy(stream, x, warped_);
   }
+  mark(stream, &FrameStages::warp);
   if (!groups_.empty()) {
     blur(stream);
     kernels::copy(stream, blurred_, y);
   } else {
     kernels::copy(stream, warped_, y);
   }
+  mark(stream, &FrameStages::blur);
   const SensorNoise& n = options_.noise;
   if (n.photons_per_unit > 0 || n.read_std > 0) {
     const float shot = n.photons_per_unit > 0 ? static_cast<float>(1 / n.photons_per_unit) : 0.f;
     kernels::sensor_noise(stream, y, y, shot, static_cast<float>(n.read_std), seed_ ^ kNoiseSalt,
                           static_cast<std::uint32_t>(frame_));
   }
+  mark(stream, &FrameStages::noise);
+}
+
+void Simulator::frame(Stream& stream, const Tensor& x, const Tensor& y, FrameStages& stages) {
+  stream.run();  // work recorded before the frame is not its own
+  stages_ = &stages;
+  stage_start_ = std::chrono::steady_clock::now();
+  try {
+    frame(stream, x, y);
+  } catch (...) {
+    stages_ = nullptr;
+    throw;
+  }
+  stages_ = nullptr;
+}
+
+void Simulator::mark(Stream& stream, double FrameStages::*stage) {
+  if (stages_ == nullptr) return;
+  stream.run();
+  const auto now = std::chrono::steady_clock::now();
+  stages_->*stage += std::chrono::duration<double>(now - stage_start_).count();
+  stage_start_ = now;
 }
 
 void Simulator::blur(Stream& stream) {
@@ -188,6 +213,7 @@ void Simulator::blur(Stream& stream) {
       g.model->weights(stream, field_->coefficients(), g.beta_grid, g.coefficient_scale);
       kernels::resize(stream, g.beta_grid, kernels::ResizeMode::bilinear_align_corners, g.beta);
     }
+    mark(stream, &FrameStages::p2s);
     if (groups_.size() > 1) kernels::slice(stream, warped_, {.channel = g.first}, g.warped);
     if (g.fft) {
       g.fft->forward(stream, g.warped, g.beta, g.blurred, g.norm, {.normalize = true});
@@ -196,6 +222,7 @@ void Simulator::blur(Stream& stream) {
                         {.normalize = true});
     }
     outputs.push_back(g.blurred);
+    mark(stream, &FrameStages::blur);
   }
   if (groups_.size() > 1) kernels::concat_channels(stream, outputs, blurred_);
 }

@@ -15,6 +15,7 @@
 #include <vkjr2/sim/field.hpp>
 #include <vkjr2/sim/params.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -24,6 +25,18 @@ namespace vkjr2::sim {
 struct SensorNoise {
   double photons_per_unit = 0;  // shot noise: photons for a pixel value of 1 (0 = none)
   double read_std = 0;          // read noise σ in pixel-value units
+};
+
+// Where a frame's time goes (Simulator::frame with a FrameStages): wall
+// seconds of each stage, the stream run after each so that none overlaps
+// the next. Accumulated over the frames it is passed to.
+struct FrameStages {
+  double fields = 0;  // the turbulence field's next state (Zernike modes, tilt)
+  double warp = 0;    // tilt → flow, the warp
+  double p2s = 0;     // blur-basis weights β from the field (P2S), resized to the frame
+  double blur = 0;    // the PSF-basis convolution (and channel slices / concat)
+  double noise = 0;   // sensor noise
+  double total() const { return fields + warp + p2s + blur + noise; }
 };
 
 struct SimOptions {
@@ -56,6 +69,9 @@ class Simulator {
   void reset(std::uint64_t seed);
   // Records the next frame: x, y [B, C, H, W] (y may not alias x).
   void frame(Stream& stream, const Tensor& x, const Tensor& y);
+  // The same frame, run stage by stage with each stage's wall time added to
+  // `stages` (for profiling: the stream is run after every stage).
+  void frame(Stream& stream, const Tensor& x, const Tensor& y, FrameStages& stages);
   // dx = ∂⟨dy, y⟩/∂x for the last frame's turbulence (noise is additive).
   void frame_backward(Stream& stream, const Tensor& dy, const Tensor& dx);
 
@@ -85,6 +101,9 @@ class Simulator {
     Tensor beta_grid, beta, norm, warped, blurred;
   };
   void blur(Stream& stream);
+  // With stages_ set (the profiling frame()): runs the stream and adds the
+  // time since the last mark to that stage.
+  void mark(Stream& stream, double FrameStages::*stage);
   const BlurGroup& group_of(int channel) const;
   Device device_;
   Params params_;
@@ -94,6 +113,8 @@ class Simulator {
   std::unique_ptr<TurbulenceField> field_;
   std::uint64_t seed_ = 0;
   std::int64_t frame_ = -1;
+  FrameStages* stages_ = nullptr;
+  std::chrono::steady_clock::time_point stage_start_;
   Tensor input_;  // the last frame's x (its backward needs it)
   Tensor flow_, warped_, blurred_;
 };

@@ -360,7 +360,12 @@ TEST(CliBenchSim, ReportsFramesPerSecondAndSpeedup) {
     EXPECT_GT(e["fps"].get<double>(), 0);
     EXPECT_GT(e["speedup_vs_wave_same_device"].get<double>(), 0);
     EXPECT_GT(e["speedup_vs_wave_fftw"].get<double>(), 0);
+    // Where the frame's time goes, stage by stage, and the image I/O.
+    for (const char* stage : {"fields", "warp", "p2s", "blur", "image_io"}) {
+      EXPECT_GT(e["stages_seconds"][stage].get<double>(), 0) << stage;
+    }
   }
+  EXPECT_NE(r.output.find("where a frame's time goes"), std::string::npos) << r.output;
   r = run_cli("bench sim --preset hurricane");
   EXPECT_EQ(r.code, 2);
 }

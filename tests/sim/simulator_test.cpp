@@ -95,6 +95,37 @@ TEST(Simulator, SameSeedSameFramesAndVideoEvolves) {
   }
 }
 
+// The profiling frame() makes the same frames and times each stage (RGB,
+// the shipped blur models, sensor noise: every stage does work).
+TEST(Simulator, StagedFrameIsTheSameFrameAndTimesEveryStage) {
+  Device& dev = test::device();
+  const Params p = frame_params(1, 3, 48, 64, "moderate");
+  SimOptions o;
+  o.noise.read_std = 0.01;
+  const auto models = load_shipped_blur_models(dev);
+  Simulator a(dev, p, models, o), b(dev, p, models, o);
+  Tensor x = Tensor::from(dev, {1, 3, 48, 64}, scene(p.image));
+  Tensor ya = Tensor::empty(dev, x.shape()), yb = Tensor::empty(dev, x.shape());
+  a.reset(5);
+  b.reset(5);
+  Stream s(dev);
+  FrameStages st;
+  double after_first = 0;
+  for (int t = 0; t < 2; ++t) {
+    a.frame(s, x, ya);
+    b.frame(s, x, yb, st);
+    s.run();
+    EXPECT_EQ(ya.download(), yb.download()) << "frame " << t;
+    if (t == 0) after_first = st.total();
+  }
+  EXPECT_GT(st.fields, 0);
+  EXPECT_GT(st.warp, 0);
+  EXPECT_GT(st.p2s, 0);
+  EXPECT_GT(st.blur, 0);
+  EXPECT_GT(st.noise, 0);
+  EXPECT_GT(st.total(), after_first);  // accumulated over the frames
+}
+
 // Embedding: the simulator on a host application's device, reading and
 // writing the host's buffers and recording into the host's command buffer,
 // makes the frames it makes on vkjr2's own device and stream.
