@@ -8,6 +8,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <memory>
 #include <vector>
 
 #include "support/frame_gradcheck.hpp"
@@ -71,25 +72,37 @@ TEST(Simulator, TiltFrameIsTheWarpOfTheField) {
   EXPECT_GT(std::sqrt(rms / double(flow.size())), 0.3);
 }
 
+// Two simulators of the same parameters reset to the same seed, one input
+// scene and an output each.
+struct Twins {
+  Twins(const Params& p, const SimOptions& o,
+        const std::vector<std::shared_ptr<const BlurModel>>& m, std::uint64_t seed)
+      : a(test::device(), p, m, o),
+        b(test::device(), p, m, o),
+        x(Tensor::from(test::device(), {1, p.image.channels, p.image.height, p.image.width},
+                       scene(p.image))),
+        ya(Tensor::empty(test::device(), x.shape())),
+        yb(Tensor::empty(test::device(), x.shape())) {
+    a.reset(seed);
+    b.reset(seed);
+  }
+  Simulator a, b;
+  Tensor x, ya, yb;
+  Stream s{test::device()};
+};
+
 TEST(Simulator, SameSeedSameFramesAndVideoEvolves) {
-  Device& dev = test::device();
-  const Params p = frame_params(1, 1, 32, 48);
   SimOptions o = tilt_only();
   o.field.tilt_rho = 0.95;
   o.noise.read_std = 0.01;
-  Simulator a(dev, p, nullptr, o), b(dev, p, nullptr, o);
-  Tensor x = Tensor::from(dev, {1, 1, 32, 48}, scene(p.image));
-  Tensor ya = Tensor::empty(dev, x.shape()), yb = Tensor::empty(dev, x.shape());
-  a.reset(77);
-  b.reset(77);
-  Stream s(dev);
+  Twins sims(frame_params(1, 1, 32, 48), o, {}, 77);
   std::vector<float> prev;
   for (int t = 0; t < 3; ++t) {
-    a.frame(s, x, ya);
-    b.frame(s, x, yb);
-    s.run();
-    const auto va = ya.download();
-    EXPECT_EQ(va, yb.download()) << "frame " << t;
+    sims.a.frame(sims.s, sims.x, sims.ya);
+    sims.b.frame(sims.s, sims.x, sims.yb);
+    sims.s.run();
+    const auto va = sims.ya.download();
+    EXPECT_EQ(va, sims.yb.download()) << "frame " << t;
     EXPECT_NE(va, prev) << "frame " << t;
     prev = va;
   }
@@ -98,24 +111,17 @@ TEST(Simulator, SameSeedSameFramesAndVideoEvolves) {
 // The profiling frame() makes the same frames and times each stage (RGB,
 // the shipped blur models, sensor noise: every stage does work).
 TEST(Simulator, StagedFrameIsTheSameFrameAndTimesEveryStage) {
-  Device& dev = test::device();
-  const Params p = frame_params(1, 3, 48, 64, "moderate");
   SimOptions o;
   o.noise.read_std = 0.01;
-  const auto models = load_shipped_blur_models(dev);
-  Simulator a(dev, p, models, o), b(dev, p, models, o);
-  Tensor x = Tensor::from(dev, {1, 3, 48, 64}, scene(p.image));
-  Tensor ya = Tensor::empty(dev, x.shape()), yb = Tensor::empty(dev, x.shape());
-  a.reset(5);
-  b.reset(5);
-  Stream s(dev);
+  Twins sims(frame_params(1, 3, 48, 64, "moderate"), o, load_shipped_blur_models(test::device()),
+             5);
   FrameStages st;
   double after_first = 0;
   for (int t = 0; t < 2; ++t) {
-    a.frame(s, x, ya);
-    b.frame(s, x, yb, st);
-    s.run();
-    EXPECT_EQ(ya.download(), yb.download()) << "frame " << t;
+    sims.a.frame(sims.s, sims.x, sims.ya);
+    sims.b.frame(sims.s, sims.x, sims.yb, st);
+    sims.s.run();
+    EXPECT_EQ(sims.ya.download(), sims.yb.download()) << "frame " << t;
     if (t == 0) after_first = st.total();
   }
   EXPECT_GT(st.fields, 0);
