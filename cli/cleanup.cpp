@@ -2,6 +2,7 @@
 
 #include <vkjr2/runtime/error.hpp>
 
+#include <fcntl.h>
 #include <pthread.h>
 #include <unistd.h>
 
@@ -58,6 +59,11 @@ int clean_up() {
   return removed;
 }
 
+// The stderr the command started with, duplicated when the signals are
+// installed: the interruption message goes there even while QuietDecoders
+// (cli/media.hpp) points descriptor 2 at /dev/null around a decoder call.
+int report_fd = -1;
+
 void wait_for_signals(sigset_t set) {
   int sig = 0;
   while (sigwait(&set, &sig) != 0) {
@@ -70,7 +76,8 @@ void wait_for_signals(sigset_t set) {
                               name, removed, removed == 1 ? "" : "s");
   if (n > 0) {
     // Best effort: nothing else to do if stderr is gone.
-    [[maybe_unused]] const ssize_t w = ::write(STDERR_FILENO, line, std::size_t(n));
+    [[maybe_unused]] const ssize_t w =
+        ::write(report_fd >= 0 ? report_fd : STDERR_FILENO, line, std::size_t(n));
   }
   ::_exit(128 + sig);
 }
@@ -86,6 +93,7 @@ void install_signal_cleanup() {
   // Threads made later (the Vulkan driver's) inherit the mask, so only the
   // waiting thread receives these signals.
   if (pthread_sigmask(SIG_BLOCK, &set, nullptr) != 0) return;
+  report_fd = ::fcntl(STDERR_FILENO, F_DUPFD_CLOEXEC, 3);  // set before the thread starts
   std::thread(wait_for_signals, set).detach();
 }
 

@@ -2,6 +2,8 @@
 // temporary outputs and the folders they made and exit 130 / 143; a failed
 // command removes the folders it made; a folder run reports a bad file and
 // goes on.
+#include "cli/cleanup.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
@@ -9,6 +11,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <array>
 #include <chrono>
 #include <csignal>
 #include <filesystem>
@@ -17,6 +20,7 @@
 #include <thread>
 #include <vector>
 
+#include "cli/media.hpp"
 #include "support/cli_checks.hpp"
 #include "support/cli_files.hpp"
 #include "support/run_cli.hpp"
@@ -105,6 +109,36 @@ TEST(CliCleanup, SignalsRemoveTemporaryOutputs) {
   EXPECT_NE(intr.stderr_text.find("SIGINT"), std::string::npos) << intr.stderr_text;
   EXPECT_TRUE(temporaries(tmp.path).empty());
   EXPECT_FALSE(fs::exists(made)) << "the folder the command made is left";
+}
+
+// The interruption message reaches the command's stderr even when the signal
+// lands while a decoder call has descriptor 2 pointed at /dev/null
+// (QuietDecoders around every image and video read or write): it had gone to
+// /dev/null about once in fifty runs of the test above.
+TEST(CliCleanup, InterruptionMessageGetsPastQuietDecoders) {
+  std::array<int, 2> fds{};
+  ASSERT_EQ(::pipe(fds.data()), 0);
+  const pid_t pid = ::fork();
+  if (pid == 0) {  // one thread here: this test runs alone in its process
+    ::dup2(fds[1], STDERR_FILENO);
+    ::close(fds[0]);
+    ::close(fds[1]);
+    vkjr2::cli::install_signal_cleanup();
+    const vkjr2::cli::QuietDecoders quiet;
+    ::kill(::getpid(), SIGTERM);
+    for (;;) ::pause();  // the signal thread ends the process
+  }
+  ::close(fds[1]);
+  std::string text;
+  std::array<char, 256> buf{};
+  ssize_t n = 0;
+  while ((n = ::read(fds[0], buf.data(), buf.size())) > 0) text.append(buf.data(), std::size_t(n));
+  ::close(fds[0]);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 143);
+  EXPECT_NE(text.find("interrupted by SIGTERM"), std::string::npos) << text;
 }
 
 // Issue case 9: a demo that fails leaves no --out folder behind.
