@@ -76,18 +76,16 @@ double io_seconds(const Device& device, const Tensor& y, const std::filesystem::
                   int frames) {
   const std::filesystem::path png = dir / "frame.png";
   const int channels = int(y.shape()[1]);
-  const HostTensor first = image_to_host(y);
-  write_image(
-      png, planes_to_image(image_to_planes(first), channels, y.shape()[2], y.shape()[3], 3, 255.f),
-      true);
+  // A device frame as the 8-bit RGB image the CLI writes.
+  const auto to_image = [&](const Tensor& t) {
+    return planes_to_image(image_to_planes(image_to_host(t)), channels, y.shape()[2], y.shape()[3],
+                           3, 255.f);
+  };
+  write_image(png, to_image(y), true);
   return bench::median_seconds(
       [&] {
         const Tensor x = image_to_device(device, read_image(png), channels, 255.f);
-        const HostTensor out = image_to_host(x);
-        write_image(
-            png,
-            planes_to_image(image_to_planes(out), channels, y.shape()[2], y.shape()[3], 3, 255.f),
-            true);
+        write_image(png, to_image(x), true);
       },
       frames, 0);
 }

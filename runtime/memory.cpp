@@ -102,13 +102,10 @@ Block* Allocator::new_block(VkDeviceSize bytes, bool dedicated, std::string_view
 }
 
 Block* Allocator::new_block_or_trim(VkDeviceSize bytes, bool dedicated, std::string_view what) {
-  const bool any_empty = std::any_of(blocks_.begin(), blocks_.end(),
-                                     [](const std::unique_ptr<Block>& b) { return b->used == 0; });
-  if (!any_empty) return new_block(bytes, dedicated, what);
   try {
     return new_block(bytes, dedicated, what);
   } catch (const OutOfMemoryError&) {
-    trim_locked();
+    if (!trim_locked()) throw;  // nothing cached: the first answer stands
     return new_block(bytes, dedicated, what);
   }
 }
@@ -127,12 +124,13 @@ void Allocator::trim() noexcept {
   trim_locked();
 }
 
-void Allocator::trim_locked() noexcept {
+bool Allocator::trim_locked() noexcept {
   for (auto& b : blocks_) {
     if (b->used == 0) destroy_block(*b);
   }
-  std::erase_if(blocks_,
-                [](const std::unique_ptr<Block>& b) { return b->memory == VK_NULL_HANDLE; });
+  return std::erase_if(blocks_, [](const std::unique_ptr<Block>& b) {
+           return b->memory == VK_NULL_HANDLE;
+         }) > 0;
 }
 
 Allocation Allocator::allocate(VkDeviceSize bytes, std::string_view what) {
@@ -193,7 +191,6 @@ void Allocator::release(const Allocation& allocation) noexcept {
     }
   }
   if (block->used != 0) return;
-  if (block->dedicated) block->free_ranges.emplace(0, block->size);  // whole again when cached
   // Without the cache, keep one empty shared block for reuse and give back the rest.
   const bool keep =
       cache_ ||

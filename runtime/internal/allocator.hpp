@@ -71,7 +71,8 @@ class Allocator {
   Block* new_block_or_trim(VkDeviceSize bytes, bool dedicated, std::string_view what);
   // An empty dedicated block of at least `bytes` and at most a quarter more.
   Block* cached_dedicated(VkDeviceSize bytes);
-  void trim_locked() noexcept;
+  // Whether any block was given back.
+  bool trim_locked() noexcept;
   void destroy_block(Block& block) noexcept;
 
   VkDevice device_;
